@@ -1,0 +1,33 @@
+#pragma once
+// Command-line options: `--name value`, `--name=value` and boolean `--flag`. Every option a command reads is
+// declared by reading it; finish() rejects any option that was given but never read (typos are errors).
+#include <cstdint>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace egopd {
+
+class Args {
+ public:
+  Args(std::string command, const std::vector<std::string>& argv);
+  const std::string& command() const { return command_; }
+  bool has(const std::string& name) const;
+  std::string get(const std::string& name, const std::string& fallback) const;
+  std::string require(const std::string& name) const;
+  int64_t get_int(const std::string& name, int64_t fallback) const;
+  double get_double(const std::string& name, double fallback) const;
+  bool flag(const std::string& name) const;  // present without value
+  const std::vector<std::string>& positional() const { return positional_; }
+  void finish() const;  // error on options given but not read
+
+ private:
+  std::string command_;
+  std::map<std::string, std::string> values_;
+  std::set<std::string> flags_;
+  std::vector<std::string> positional_;
+  mutable std::set<std::string> read_;
+};
+
+}  // namespace egopd

@@ -1,0 +1,36 @@
+#include <cstdio>
+#include <cstdlib>
+
+#include "cli/commands.h"
+#include "core/memory.h"
+#include "egopd/version.h"
+
+namespace egopd {
+
+double peak_gflops(int threads) {
+  double per_core = 32.0 * 3.07;
+  if (const char* e = std::getenv("EGOPD_PEAK_GFLOPS")) per_core = std::atof(e) > 0 ? std::atof(e) : per_core;
+  return per_core * threads;
+}
+
+void print_bench_report(const BenchReport& r, bool json) {
+  const double gflops = r.seconds > 0 ? r.gflop / r.seconds : 0;
+  nlohmann::ordered_json j;
+  j["target"] = r.target;
+  j["seconds"] = r.seconds;
+  j["gflop"] = r.gflop;
+  j["gflops"] = gflops;
+  j["percent_of_peak"] = 100.0 * gflops / peak_gflops(r.threads);
+  j["peak_gflops"] = peak_gflops(r.threads);
+  j["threads"] = r.threads;
+  j["peak_rss_bytes"] = peak_rss_bytes();
+  j["version"] = EGOPD_VERSION;
+  for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();
+  if (json) {
+    std::printf("%s\n", j.dump().c_str());
+  } else {
+    std::printf("%s\n", j.dump(2).c_str());
+  }
+}
+
+}  // namespace egopd

@@ -1,0 +1,29 @@
+#pragma once
+// Every `egopd` command and `egopd bench` target is a function taking its parsed options; main.cpp dispatches.
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "cli/args.h"
+
+namespace egopd {
+
+int cmd_forward(const Args& a);
+
+// bench targets
+int bench_gemm(const Args& a);
+int bench_conv2d(const Args& a);
+
+// Shared reporting of every bench target: one JSON object (--json) or a short text block with at least
+// seconds (median per call), gflops, percent_of_peak and peak_rss_bytes.
+struct BenchReport {
+  std::string target;
+  double seconds = 0;  // median per call
+  double gflop = 0;    // work per call
+  int threads = 1;
+  nlohmann::ordered_json extra = nlohmann::ordered_json::object();
+};
+void print_bench_report(const BenchReport& r, bool json);
+// FP32 peak of this machine class: threads x 32 FLOP/cycle x 3.07 GHz (override: EGOPD_PEAK_GFLOPS per core).
+double peak_gflops(int threads);
+
+}  // namespace egopd

@@ -1,0 +1,120 @@
+// egopd: command-line entry point. Every failure is a one-line "egopd: <message>" on stderr and exit code 1.
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "core/cpu.h"
+#include "core/error.h"
+#include "core/threading.h"
+#include "egopd/version.h"
+
+namespace egopd {
+namespace {
+
+struct Command {
+  const char* name;
+  int (*run)(const Args&);
+  const char* usage;
+};
+
+struct BenchTarget {
+  const char* name;
+  int (*run)(const Args&);
+  const char* usage;
+};
+
+const BenchTarget kBenchTargets[] = {
+    {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
+    {"conv2d", bench_conv2d,
+     "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]"},
+};
+
+int cmd_bench(const Args& a);
+
+const Command kCommands[] = {
+    {"forward", cmd_forward,
+     "egopd forward --case DIR --output FILE [--check]\n"
+     "  Runs a golden case folder (case.json, model/, inputs.safetensors) and writes every output tensor to FILE\n"
+     "  (safetensors, written atomically). --check also compares with the case's expected.safetensors."},
+    {"bench", cmd_bench,
+     "egopd bench TARGET [options] [--threads T] [--json]\n"
+     "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
+     "  Targets: gemm, conv2d."},
+};
+
+int cmd_bench(const Args& a) {
+  if (a.positional().empty()) throw Error("bench: name a target (see egopd bench --help)");
+  const std::string t = a.positional()[0];
+  for (const auto& b : kBenchTargets)
+    if (t == b.name) return b.run(a);
+  throw Error("bench: unknown target '" + t + "' (see egopd bench --help)");
+}
+
+void print_help() {
+  std::printf(
+      "egopd %s - CPU runtime for EgoPressureDiff (grasp pressure from egocentric video)\n\n"
+      "usage: egopd COMMAND [options]   (egopd COMMAND --help for details)\n\n"
+      "commands:\n",
+      EGOPD_VERSION);
+  for (const auto& c : kCommands) {
+    std::string first(c.usage, std::strchr(c.usage, '\n') ? std::strchr(c.usage, '\n') : c.usage + std::strlen(c.usage));
+    std::printf("  %s\n", first.c_str());
+  }
+  std::printf(
+      "\ncommon options:\n"
+      "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
+      "environment:\n"
+      "  EGOPD_THREADS   default thread count\n"
+      "  EGOPD_PORTABLE=1  use the portable kernels even where AVX2/FMA/F16C is available\n");
+}
+
+int run(int argc, char** argv) {
+  std::vector<std::string> rest(argv + 1, argv + argc);
+  if (rest.empty() || rest[0] == "--help" || rest[0] == "-h" || rest[0] == "help") {
+    print_help();
+    return rest.empty() ? 2 : 0;
+  }
+  if (rest[0] == "--version") {
+    std::printf("egopd %s (kernels: %s)\n", EGOPD_VERSION, use_avx2() ? "avx2+fma+f16c" : "portable");
+    return 0;
+  }
+  const std::string name = rest[0];
+  rest.erase(rest.begin());
+  for (const auto& c : kCommands) {
+    if (name != c.name) continue;
+    for (const auto& r : rest)
+      if (r == "--help" || r == "-h") {
+        std::printf("%s\n", c.usage);
+        if (name == "bench")
+          for (const auto& b : kBenchTargets) std::printf("  egopd bench %s %s\n", b.name, b.usage);
+        return 0;
+      }
+    Args a(name, rest);
+    init_threads_from_env();
+    if (a.has("threads")) {
+      int64_t t = a.get_int("threads", 0);
+      if (t < 1 || t > 1024) throw Error(name + ": --threads must be between 1 and 1024");
+      set_num_threads(int(t));
+    }
+    return c.run(a);
+  }
+  throw Error("unknown command '" + name + "' (see egopd --help)");
+}
+
+}  // namespace
+}  // namespace egopd
+
+int main(int argc, char** argv) {
+  try {
+    return egopd::run(argc, argv);
+  } catch (const egopd::Error& e) {
+    std::fprintf(stderr, "egopd: %s\n", e.what());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "egopd: out of memory\n");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "egopd: %s\n", e.what());
+  }
+  return 1;
+}

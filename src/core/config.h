@@ -1,0 +1,41 @@
+#pragma once
+// config.json access with field-naming errors ("unet/config.json: field 'block_out_channels': ...").
+// diffusers / transformers configs give per-block values either as a list or as one scalar for every block.
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace egopd {
+
+class Config {
+ public:
+  Config() = default;
+  Config(nlohmann::json j, std::string source) : j_(std::move(j)), source_(std::move(source)) {}
+  static Config load(const std::string& path);
+
+  bool has(const std::string& key) const { return j_.is_object() && j_.contains(key) && !j_[key].is_null(); }
+  int64_t get_int(const std::string& key) const;
+  int64_t get_int(const std::string& key, int64_t fallback) const;
+  double get_double(const std::string& key) const;
+  double get_double(const std::string& key, double fallback) const;
+  bool get_bool(const std::string& key, bool fallback) const;
+  std::string get_string(const std::string& key) const;
+  std::string get_string(const std::string& key, const std::string& fallback) const;
+  std::vector<std::string> get_string_list(const std::string& key) const;
+  std::vector<double> get_double_list(const std::string& key) const;
+  // A list of exactly n ints, or one int repeated n times.
+  std::vector<int64_t> get_int_per_block(const std::string& key, size_t n) const;
+  std::vector<int64_t> get_int_list(const std::string& key) const;
+  Config sub(const std::string& key) const;  // nested object (error if missing)
+
+  const nlohmann::json& json() const { return j_; }
+  const std::string& source() const { return source_; }
+  [[noreturn]] void fail(const std::string& key, const std::string& why) const;
+
+ private:
+  const nlohmann::json& at(const std::string& key) const;
+  nlohmann::json j_ = nlohmann::json::object();
+  std::string source_;
+};
+
+}  // namespace egopd

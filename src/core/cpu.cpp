@@ -1,0 +1,32 @@
+#include "core/cpu.h"
+
+#include <cstdlib>
+#include <cstring>
+
+namespace egopd {
+
+static int g_force_portable = -1;  // -1: read EGOPD_PORTABLE once
+
+bool cpu_has_avx2_fma_f16c() {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool ok = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && __builtin_cpu_supports("f16c");
+  }();
+  return ok;
+#else
+  return false;
+#endif
+}
+
+void set_force_portable(bool on) { g_force_portable = on ? 1 : 0; }
+
+bool use_avx2() {
+  if (g_force_portable < 0) {
+    const char* e = std::getenv("EGOPD_PORTABLE");
+    g_force_portable = (e && *e && std::strcmp(e, "0") != 0) ? 1 : 0;
+  }
+  return !g_force_portable && cpu_has_avx2_fma_f16c();
+}
+
+}  // namespace egopd

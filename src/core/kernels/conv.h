@@ -1,0 +1,32 @@
+#pragma once
+// Convolutions on frame-major NCHW activations. Zero padding, cross-correlation, float32 arithmetic; weights in
+// their stored dtype (F32/F16/BF16/I8+scale), converted while packing. Same epilogue as gemm (bias per output
+// channel, fused activation, fused residual accumulate). Fast paths for 1x1 and 3x3 that never materialise the
+// im2col of a whole input; any kernel/stride/padding works (patch embedding: kernel = stride = 14).
+#include <cstdint>
+
+#include "core/kernels/gemm.h"
+
+namespace egopd {
+
+struct Conv2dGeom {
+  int64_t cin = 0, cout = 0;
+  int64_t kh = 1, kw = 1;
+  int64_t stride_h = 1, stride_w = 1;
+  int64_t pad_h = 0, pad_w = 0;
+  int64_t out_h(int64_t h) const { return (h + 2 * pad_h - kh) / stride_h + 1; }
+  int64_t out_w(int64_t w) const { return (w + 2 * pad_w - kw) / stride_w + 1; }
+};
+
+// x [n, cin, h, w] -> y [n, cout, out_h, out_w]; weight [cout, cin, kh, kw]; bias [cout] or null.
+// ep.bias is ignored (pass bias here); ep.bias_per_row is implied.
+void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
+            const Conv2dGeom& g, float* y, Act act = Act::None, bool accumulate = false);
+
+// Temporal convolution, kernel (3,1,1), padding (1,0,0) with zeros in time, on frame-major activations:
+// x [b*f, cin, hw] -> y [b*f, cout, hw], y[b,t,o] = bias[o] + sum_{c,k} W[o,c,k] x[b,t+k-1,c].
+// weight is the stored [cout, cin, 3, 1, 1] tensor.
+void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
+                    const float* bias, int64_t cout, float* y, Act act = Act::None, bool accumulate = false);
+
+}  // namespace egopd

@@ -1,0 +1,39 @@
+#pragma once
+// SGEMM: C[M,N] (+)= act(op(A)[M,K] · op(B)[K,N] + bias). Packed panels, cache blocking, OpenMP inside
+// (never call it from inside a parallel region of your own), AVX2/FMA micro-kernel with a portable path beside it.
+// Operands may be stored as F32, F16 or BF16 (converted to float32 while packing; F16 via F16C), or as I8 with one
+// float scale per output channel (dequantised while packing). All arithmetic is float32.
+#include <cstdint>
+
+#include "core/dtype.h"
+
+namespace egopd {
+
+enum class Act : uint8_t { None, SiLU, GELU, QuickGELU };  // GELU = exact erf form
+
+// Logical matrix [rows, cols]: element (r, c) is at data[r*ld + c] when !trans, at data[c*ld + r] when trans.
+// Linear layers pass the weight W [out, in] as B with trans = true (y = x·Wᵀ).
+struct Operand {
+  const void* data = nullptr;
+  DType dtype = DType::F32;
+  int64_t ld = 0;
+  bool trans = false;
+  const float* scale = nullptr;  // I8 only: one scale per output channel (per column of B, per row of A)
+};
+
+inline Operand f32_operand(const float* p, int64_t ld, bool trans = false) { return {p, DType::F32, ld, trans, nullptr}; }
+
+struct Epilogue {
+  const float* bias = nullptr;  // bias[n] per column (linear), or bias[m] per row when bias_per_row (conv, NCHW)
+  bool bias_per_row = false;
+  Act act = Act::None;          // applied to (A·B + bias)
+  bool accumulate = false;      // C = C + act(A·B + bias)   (fused residual add)
+};
+
+void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, float* C, int64_t ldc,
+          const Epilogue& ep = {});
+
+// Scalar reference of the epilogue activations (shared by kernels and tests).
+float apply_act(Act act, float x);
+
+}  // namespace egopd

@@ -1,0 +1,136 @@
+#include "core/tensor.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+
+#include "core/error.h"
+
+namespace egopd {
+
+Shape::Shape(std::initializer_list<int64_t> dims) {
+  EGOPD_CHECK(dims.size() <= size_t(kMaxDims), "tensor rank above 5");
+  for (int64_t v : dims) d_[n_++] = v;
+}
+
+Shape::Shape(const std::vector<int64_t>& dims) {
+  if (dims.size() > size_t(kMaxDims)) throw Error("tensor rank " + std::to_string(dims.size()) + " above 5");
+  for (int64_t v : dims) d_[n_++] = v;
+}
+
+int64_t Shape::numel() const {
+  int64_t n = 1;
+  for (int i = 0; i < n_; ++i) n *= d_[i];
+  return n;
+}
+
+bool Shape::operator==(const Shape& o) const {
+  if (n_ != o.n_) return false;
+  for (int i = 0; i < n_; ++i)
+    if (d_[i] != o.d_[i]) return false;
+  return true;
+}
+
+std::string Shape::str() const {
+  std::string s = "[";
+  for (int i = 0; i < n_; ++i) {
+    if (i) s += ",";
+    s += std::to_string(d_[i]);
+  }
+  return s + "]";
+}
+
+std::shared_ptr<float[]> alloc_floats(size_t n) {
+  size_t bytes = std::max<size_t>(64, (n * sizeof(float) + 63) / 64 * 64);
+  void* p = std::aligned_alloc(64, bytes);
+  if (!p) throw Error("out of memory allocating " + std::to_string(bytes) + " bytes");
+  return std::shared_ptr<float[]>(static_cast<float*>(p), [](float* q) { std::free(q); });
+}
+
+Tensor::Tensor(const Shape& shape) : shape_(shape) {
+  for (int i = 0; i < shape.ndim(); ++i)
+    if (shape[i] < 0) throw Error("negative tensor dimension in " + shape.str());
+  owner_ = alloc_floats(size_t(shape.numel()));
+  data_ = owner_.get();
+}
+
+Tensor Tensor::zeros(const Shape& shape) { return full(shape, 0.0f); }
+
+Tensor Tensor::full(const Shape& shape, float v) {
+  Tensor t(shape);
+  std::fill(t.data_, t.data_ + t.numel(), v);
+  return t;
+}
+
+Tensor Tensor::from(const Shape& shape, const std::vector<float>& values) {
+  EGOPD_CHECK(int64_t(values.size()) == shape.numel(), "value count does not match shape " + shape.str());
+  Tensor t(shape);
+  std::copy(values.begin(), values.end(), t.data_);
+  return t;
+}
+
+Tensor Tensor::view(const Shape& shape, float* data) {
+  Tensor t;
+  t.shape_ = shape;
+  t.data_ = data;
+  return t;
+}
+
+Tensor Tensor::reshaped(const Shape& shape) const {
+  EGOPD_CHECK(shape.numel() == numel(), "reshape " + shape_.str() + " -> " + shape.str());
+  Tensor t = *this;
+  t.shape_ = shape;
+  return t;
+}
+
+Tensor Tensor::clone() const {
+  Tensor t(shape_);
+  if (numel()) std::memcpy(t.data_, data_, size_t(numel()) * sizeof(float));
+  return t;
+}
+
+// ---------------------------------------------------------------- Arena
+
+Arena::Arena(size_t initial_floats) {
+  if (initial_floats) chunks_.push_back({alloc_floats(initial_floats), 0, initial_floats});
+}
+
+static size_t round16(size_t n) { return (n + 15) / 16 * 16; }  // keep every block 64-byte aligned
+
+Tensor Arena::take(const Shape& shape) {
+  size_t n = round16(size_t(std::max<int64_t>(shape.numel(), 1)));
+  for (;;) {
+    // find the chunk containing used_
+    for (auto& c : chunks_) {
+      if (used_ >= c.begin && used_ < c.begin + c.size) {
+        if (used_ + n <= c.begin + c.size) {
+          float* p = c.mem.get() + (used_ - c.begin);
+          used_ += n;
+          peak_ = std::max(peak_, used_);
+          return Tensor::view(shape, p);
+        }
+        used_ = c.begin + c.size;  // skip the chunk's tail; continue in the next chunk
+      }
+    }
+    size_t end = chunks_.empty() ? 0 : chunks_.back().begin + chunks_.back().size;
+    if (used_ >= end) {
+      size_t grow = std::max(n, end / 2 + (size_t(1) << 20));
+      chunks_.push_back({alloc_floats(grow), end, grow});
+      used_ = end;
+    }
+  }
+}
+
+void Arena::release(size_t mark) {
+  EGOPD_CHECK(mark <= used_, "arena release past its use");
+  used_ = mark;
+}
+
+size_t Arena::capacity_bytes() const {
+  size_t n = 0;
+  for (const auto& c : chunks_) n += c.size;
+  return n * sizeof(float);
+}
+
+}  // namespace egopd
