@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The test command: install what is missing, build (Release), run every unit and golden test; then build the tests
+# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs=$(nproc 2>/dev/null || echo 2)
+
+./scripts/build.sh
+ctest --test-dir build --output-on-failure -j"$jobs"
+
+echo "== sanitizer build (ASan + UBSan) =="
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF >/dev/null
+cmake --build build-asan -j"$jobs"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build-asan --output-on-failure -j"$jobs"
