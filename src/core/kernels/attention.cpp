@@ -1,0 +1,61 @@
+#include "core/kernels/attention.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "core/error.h"
+
+namespace egopd {
+
+namespace {
+
+// One query row of one head against all of its keys: online softmax, accumulating in a dh-sized buffer.
+void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, int64_t v_ld, int64_t nk, int64_t dh,
+                float scale, float* acc, float* out) {
+  float m = -INFINITY, l = 0.0f;
+  std::fill(acc, acc + dh, 0.0f);
+  for (int64_t j = 0; j < nk; ++j) {
+    const float* kr = k + j * k_ld;
+    float sdot = 0.0f;
+    for (int64_t d = 0; d < dh; ++d) sdot += q[d] * kr[d];
+    const float sj = sdot * scale;
+    if (sj > m) {
+      const float corr = std::exp(m - sj);  // exp(-inf) = 0 on the first key
+      l *= corr;
+      for (int64_t d = 0; d < dh; ++d) acc[d] *= corr;
+      m = sj;
+    }
+    const float p = std::exp(sj - m);
+    l += p;
+    const float* vr = v + j * v_ld;
+    for (int64_t d = 0; d < dh; ++d) acc[d] += p * vr[d];
+  }
+  const float inv = 1.0f / l;
+  for (int64_t d = 0; d < dh; ++d) out[d] = acc[d] * inv;
+}
+
+}  // namespace
+
+void attention(const AttentionArgs& a) {
+  EGOPD_CHECK(a.lq > 0 && a.lk > 0 && a.dh > 0, "attention: empty shape");
+  EGOPD_CHECK(!a.causal || a.lq == a.lk, "attention: causal mask needs lq == lk");
+  const int64_t units = a.batch * a.heads * a.lq;
+  const bool par = !omp_in_parallel() && units * a.lk * a.dh >= (1 << 16);
+#pragma omp parallel if (par)
+  {
+    std::vector<float> acc(a.dh);
+#pragma omp for schedule(static)
+    for (int64_t u = 0; u < units; ++u) {
+      const int64_t i = u % a.lq, h = (u / a.lq) % a.heads, b = u / (a.lq * a.heads);
+      const int64_t off = h * a.dh;
+      const int64_t nk = a.causal ? i + 1 : a.lk;
+      attend_row(a.q + b * a.q_bs + i * a.q_ld + off, a.k + b * a.k_bs + off, a.k_ld, a.v + b * a.v_bs + off,
+                 a.v_ld, nk, a.dh, a.scale, acc.data(), a.out + b * a.out_bs + i * a.out_ld + off);
+    }
+  }
+}
+
+}  // namespace egopd
