@@ -2,44 +2,96 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
+#include "core/cpu.h"
 #include "core/error.h"
 
 namespace egopd {
+
+namespace avx2 {  // elementwise_avx2.cpp: serial kernels on contiguous spans
+void silu_inplace(float* x, int64_t n);
+void gelu_inplace(float* x, int64_t n);
+void quick_gelu_inplace(float* x, int64_t n);
+void erf_inplace(float* x, int64_t n);
+void geglu_row(const float* a, const float* g, int64_t d, float* out);
+void blend_inplace(float* y, const float* x, float a, int64_t n);
+void add_inplace(float* y, const float* x, int64_t n);
+}  // namespace avx2
 
 namespace {
 
 constexpr int64_t kParallelMin = 1 << 15;  // below this many elements threads cost more than they save
 bool run_parallel(int64_t n) { return n >= kParallelMin && !omp_in_parallel(); }
 
-float gelu_scalar(float v) { return 0.5f * v * (1.0f + std::erf(v * 0.70710678118654752f)); }
+// Calls fn(begin, end) on contiguous chunks of [0, n) (64-float aligned), in parallel when n is large.
+template <class Fn>
+void for_chunks(int64_t n, Fn fn) {
+  if (!run_parallel(n)) {
+    fn(int64_t{0}, n);
+    return;
+  }
+#pragma omp parallel
+  {
+    const int64_t nt = omp_get_num_threads(), t = omp_get_thread_num();
+    const int64_t per = ((n + nt - 1) / nt + 63) / 64 * 64;
+    const int64_t b = std::min(n, t * per), e = std::min(n, b + per);
+    if (b < e) fn(b, e);
+  }
+}
+
+float sigmoid_mul(float x, float k) { return x / (1.0f + std::exp(-k * x)); }
+
+// 0.5 x (1 + erf(x/sqrt2)); for x < 0 the bracket is erfc(|x|/sqrt2), evaluated without cancellation.
+float gelu_scalar(float x) {
+  const float z = x * 0.70710678118654752f;
+  return 0.5f * x * (z < 0.0f ? std::erfc(-z) : 1.0f + std::erf(z));
+}
 
 }  // namespace
 
 void silu_inplace(float* x, int64_t n) {
-#pragma omp parallel for schedule(static) if (run_parallel(n))
-  for (int64_t i = 0; i < n; ++i) x[i] = x[i] / (1.0f + std::exp(-x[i]));
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::silu_inplace(x + b, e - b); });
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.0f);
+  });
 }
 
 void gelu_inplace(float* x, int64_t n) {
-#pragma omp parallel for schedule(static) if (run_parallel(n))
-  for (int64_t i = 0; i < n; ++i) x[i] = gelu_scalar(x[i]);
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::gelu_inplace(x + b, e - b); });
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) x[i] = gelu_scalar(x[i]);
+  });
 }
 
 void quick_gelu_inplace(float* x, int64_t n) {
-#pragma omp parallel for schedule(static) if (run_parallel(n))
-  for (int64_t i = 0; i < n; ++i) x[i] = x[i] / (1.0f + std::exp(-1.702f * x[i]));
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::quick_gelu_inplace(x + b, e - b); });
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.702f);
+  });
+}
+
+void erf_inplace(float* x, int64_t n) {
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::erf_inplace(x + b, e - b); });
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) x[i] = std::erf(x[i]);
+  });
 }
 
 void geglu(const float* p, int64_t rows, int64_t d, float* out) {
+  const bool vec = use_avx2();
 #pragma omp parallel for schedule(static) if (run_parallel(rows * d))
   for (int64_t r = 0; r < rows; ++r) {
-    const float* a = p + r * 2 * d;
+    const float* a = p + r * 2 * d;  // [rows, 2d]: value half, then gate half
     const float* g = a + d;
     float* o = out + r * d;
-    for (int64_t i = 0; i < d; ++i) o[i] = a[i] * gelu_scalar(g[i]);
+    if (vec) {
+      avx2::geglu_row(a, g, d, o);
+    } else {
+      for (int64_t i = 0; i < d; ++i) o[i] = a[i] * gelu_scalar(g[i]);
+    }
   }
 }
 
@@ -51,8 +103,7 @@ void upsample_nearest2x(const float* x, int64_t planes, int64_t h, int64_t w, fl
     for (int64_t i = 0; i < h; ++i) {
       float* row0 = yp + (2 * i) * (2 * w);
       for (int64_t j = 0; j < w; ++j) row0[2 * j] = row0[2 * j + 1] = xp[i * w + j];
-      float* row1 = row0 + 2 * w;
-      for (int64_t j = 0; j < 2 * w; ++j) row1[j] = row0[j];
+      std::copy_n(row0, 2 * w, row0 + 2 * w);  // output row 2i+1 repeats row 2i
     }
   }
 }
@@ -74,14 +125,18 @@ void timestep_embedding(const float* t, int64_t n, int64_t dim, float* out) {
 }
 
 void blend_inplace(float* y, const float* x, float a, int64_t n) {
-  const float b = 1.0f - a;
-#pragma omp parallel for schedule(static) if (run_parallel(n))
-  for (int64_t i = 0; i < n; ++i) y[i] = a * x[i] + b * y[i];
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::blend_inplace(y + b, x + b, a, e - b); });
+  const float c = 1.0f - a;
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) y[i] = a * x[i] + c * y[i];
+  });
 }
 
 void add_inplace(float* y, const float* x, int64_t n) {
-#pragma omp parallel for schedule(static) if (run_parallel(n))
-  for (int64_t i = 0; i < n; ++i) y[i] += x[i];
+  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::add_inplace(y + b, x + b, e - b); });
+  for_chunks(n, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) y[i] += x[i];
+  });
 }
 
 }  // namespace egopd

@@ -7,6 +7,7 @@ namespace egopd {
 void silu_inplace(float* x, int64_t n);
 void gelu_inplace(float* x, int64_t n);        // exact: 0.5 x (1 + erf(x / sqrt 2))
 void quick_gelu_inplace(float* x, int64_t n);  // x * sigmoid(1.702 x)
+void erf_inplace(float* x, int64_t n);         // erf, as used inside GELU (exposed for accuracy tests)
 
 // GEGLU tail: p [rows, 2*d] (the projection output) -> out [rows, d], out = p[:, :d] * GELU(p[:, d:]).
 void geglu(const float* p, int64_t rows, int64_t d, float* out);

@@ -1,0 +1,113 @@
+#pragma once
+// Vectorised float32 math for AVX2/FMA kernels: exp, erf, 1+erf, SiLU, GELU, horizontal reductions.
+// Include ONLY from *_avx2.cpp files, after `#pragma GCC target("avx2,fma,f16c")` and <immintrin.h>.
+// Every function is `static inline` so each AVX2 translation unit gets its own internal copy (nothing leaks
+// into portable code). Polynomial coefficients are Chebyshev fits of the exact functions; accuracy (tested
+// against double precision): exp ~1 ulp, erf and 1+erf a few ulp relative over the whole float range.
+#include <immintrin.h>
+
+namespace egopd::vmath {
+
+static inline __m256 horner(__m256 x, const float* c, int n) {  // c[0] x^(n-1) + ... + c[n-1]
+  __m256 p = _mm256_set1_ps(c[0]);
+  for (int i = 1; i < n; ++i) p = _mm256_fmadd_ps(p, x, _mm256_set1_ps(c[i]));
+  return p;
+}
+
+// exp(x). Results below 2^-126 flush to 0; above FLT_MAX give +inf; exp(-inf) = 0.
+static inline __m256 exp_ps(__m256 x) {
+  static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
+                                 5.000000000e-01f};  // (exp(r) - 1 - r) / r^2 on [-ln2/2, ln2/2]
+  const __m256 lo_limit = _mm256_set1_ps(-87.33654f), hi_limit = _mm256_set1_ps(88.72283f);
+  const __m256 xc = _mm256_min_ps(_mm256_max_ps(x, lo_limit), _mm256_set1_ps(88.02969f));  // keeps n <= 127
+  const __m256 n = _mm256_round_ps(_mm256_mul_ps(xc, _mm256_set1_ps(1.44269504088896341f)),
+                                   _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(6.931471825e-01f), xc);  // x - n ln2, ln2 split hi + lo
+  r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-1.904654212e-09f), r);
+  const __m256 p = horner(r, kPoly, 5);
+  const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(r, r), p, r), _mm256_set1_ps(1.0f));
+  const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  __m256 res = _mm256_mul_ps(y, _mm256_castsi256_ps(e));
+  res = _mm256_andnot_ps(_mm256_cmp_ps(x, lo_limit, _CMP_LT_OQ), res);
+  return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GT_OQ));
+}
+
+// erf(a) and erfc(a) for a = |z| >= 0, each accurate relative to its own value.
+static inline void erf_erfc_abs(__m256 a, __m256* erf_a, __m256* erfc_a) {
+  static const float kSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,
+                                  1.128359437e-01f, -3.761262596e-01f, 1.128379107e+00f};  // erf(a)/a in a^2, a<1
+  static const float kTail[9] = {-4.387202486e-02f, 2.385862917e-01f, -4.306684136e-01f,
+                                 2.423289418e-01f,  -1.475901343e-02f, 2.010129243e-01f,
+                                 2.430254966e-01f,  2.824241221e-01f,  2.820825875e-01f};  // erfc(a) e^(a^2)/t
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256 a2 = _mm256_mul_ps(a, a);
+  const __m256 small = _mm256_mul_ps(a, horner(a2, kSmall, 7));  // erf(a), a < 1
+  // erfc(a) = t R(t) exp(-a^2), t = 2/(2+a), a >= 1. a^2 = hi + lo exactly, exp(-hi-lo) ~ exp(-hi)(1-lo).
+  const __m256 ac = _mm256_min_ps(a, _mm256_set1_ps(10.0f));
+  const __m256 t = _mm256_div_ps(_mm256_set1_ps(2.0f), _mm256_add_ps(_mm256_set1_ps(2.0f), ac));
+  const __m256 hi = _mm256_mul_ps(ac, ac);
+  const __m256 lo = _mm256_fmsub_ps(ac, ac, hi);
+  const __m256 ex = _mm256_mul_ps(exp_ps(_mm256_sub_ps(_mm256_setzero_ps(), hi)), _mm256_sub_ps(one, lo));
+  const __m256 tail = _mm256_mul_ps(_mm256_mul_ps(t, horner(t, kTail, 9)), ex);  // erfc(a), a >= 1
+  const __m256 is_small = _mm256_cmp_ps(a, one, _CMP_LT_OQ);
+  *erf_a = _mm256_blendv_ps(_mm256_sub_ps(one, tail), small, is_small);
+  *erfc_a = _mm256_blendv_ps(tail, _mm256_sub_ps(one, small), is_small);
+}
+
+static inline __m256 sign_bit(__m256 z) { return _mm256_and_ps(z, _mm256_set1_ps(-0.0f)); }
+static inline __m256 abs_ps(__m256 z) { return _mm256_andnot_ps(_mm256_set1_ps(-0.0f), z); }
+
+static inline __m256 erf_ps(__m256 z) {
+  __m256 e, c;
+  erf_erfc_abs(abs_ps(z), &e, &c);
+  return _mm256_or_ps(e, sign_bit(z));
+}
+
+// 1 + erf(z) without cancellation for negative z (= erfc(|z|) there).
+static inline __m256 erf1p_ps(__m256 z) {
+  __m256 e, c;
+  erf_erfc_abs(abs_ps(z), &e, &c);
+  const __m256 pos = _mm256_add_ps(_mm256_set1_ps(1.0f), e);
+  return _mm256_blendv_ps(pos, c, z);  // blendv selects on the sign bit of z
+}
+
+// GELU(x) = 0.5 x (1 + erf(x / sqrt 2)), exact erf form.
+static inline __m256 gelu_ps(__m256 x) {
+  const __m256 z = _mm256_mul_ps(x, _mm256_set1_ps(0.70710678118654752f));
+  return _mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(0.5f), x), erf1p_ps(z));
+}
+
+// x * sigmoid(k x) = x / (1 + exp(-k x)); k = 1 for SiLU, 1.702 for quick GELU.
+static inline __m256 x_sigmoid_ps(__m256 x, float k) {
+  const __m256 e = exp_ps(_mm256_mul_ps(x, _mm256_set1_ps(-k)));
+  return _mm256_div_ps(x, _mm256_add_ps(_mm256_set1_ps(1.0f), e));
+}
+static inline __m256 silu_ps(__m256 x) { return x_sigmoid_ps(x, 1.0f); }
+
+static inline float hsum_ps(__m256 v) {
+  __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  s = _mm_add_ss(s, _mm_movehdup_ps(s));
+  return _mm_cvtss_f32(s);
+}
+
+static inline float hmax_ps(__m256 v) {
+  __m128 s = _mm_max_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  s = _mm_max_ps(s, _mm_movehl_ps(s, s));
+  s = _mm_max_ss(s, _mm_movehdup_ps(s));
+  return _mm_cvtss_f32(s);
+}
+
+static inline double hsum_pd(__m256d v) {
+  __m128d s = _mm_add_pd(_mm256_castpd256_pd128(v), _mm256_extractf128_pd(v, 1));
+  s = _mm_add_sd(s, _mm_unpackhi_pd(s, s));
+  return _mm_cvtsd_f64(s);
+}
+
+// Mask with the first n (0..8) lanes set, for tail loads/stores.
+static inline __m256i tail_mask(long n) {
+  static const int kLanes[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kLanes + 8 - n));
+}
+
+}  // namespace egopd::vmath

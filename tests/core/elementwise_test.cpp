@@ -1,0 +1,184 @@
+// Element-wise kernels against double-precision references, on the portable and AVX2 paths.
+#include "core/kernels/elementwise.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "core/cpu.h"
+
+namespace egopd {
+namespace {
+
+const bool kPaths[] = {true, false};  // force_portable on, off
+
+struct PathGuard {
+  explicit PathGuard(bool portable) { set_force_portable(portable); }
+  ~PathGuard() { set_force_portable(false); }
+};
+
+constexpr double kUlp = 1.1920928955078125e-07;  // 2^-23
+
+// Relative error in units of 2^-23, with an absolute floor below which differences are ignored.
+double ulps(float got, double ref, double abs_floor = 1e-37) {
+  const double err = std::fabs(static_cast<double>(got) - ref);
+  if (err <= abs_floor) return 0.0;
+  return err / (std::max(std::fabs(ref), 1e-300) * kUlp);
+}
+
+std::vector<float> dense_inputs(double lo, double hi, int n) {
+  std::vector<float> x;
+  for (int i = 0; i <= n; ++i) x.push_back(static_cast<float>(lo + (hi - lo) * i / n));
+  for (float t : {1e-30f, 1e-20f, 1e-10f, 1e-6f, 3e-4f, 1e-38f, 0.0f, 0.999999f, 1.0f, 1.000001f, 9.9f}) {
+    x.push_back(t);
+    x.push_back(-t);
+  }
+  return x;
+}
+
+TEST(Elementwise, ErfAccurateToFewUlpOverDenseRange) {
+  const std::vector<float> in = dense_inputs(-10.0, 10.0, 400001);
+  for (bool portable : kPaths) {
+    PathGuard guard(portable);
+    SCOPED_TRACE(portable ? "portable" : "avx2");
+    std::vector<float> y = in;
+    erf_inplace(y.data(), static_cast<int64_t>(y.size()));
+    double worst = 0.0;
+    float worst_x = 0.0f;
+    for (size_t i = 0; i < in.size(); ++i) {
+      const double u = ulps(y[i], std::erf(static_cast<double>(in[i])), 0.0);
+      if (u > worst) worst = u, worst_x = in[i];
+    }
+    EXPECT_LE(worst, 3.0) << "at x=" << worst_x;
+  }
+}
+
+TEST(Elementwise, GeluExactErfFormRelativeAccuracy) {
+  const std::vector<float> in = dense_inputs(-14.0, 14.0, 280001);
+  for (bool portable : kPaths) {
+    PathGuard guard(portable);
+    SCOPED_TRACE(portable ? "portable" : "avx2");
+    std::vector<float> y = in;
+    gelu_inplace(y.data(), static_cast<int64_t>(y.size()));
+    double worst = 0.0;
+    float worst_x = 0.0f;
+    for (size_t i = 0; i < in.size(); ++i) {
+      // The float recipe rounds x/sqrt2 to float first; the reference does the same so only the erf part is judged.
+      const double z = static_cast<float>(in[i] * 0.70710678118654752f);
+      const double ref = 0.5 * in[i] * std::erfc(-z);
+      const double u = ulps(y[i], ref, 1e-36);
+      if (u > worst) worst = u, worst_x = in[i];
+    }
+    EXPECT_LE(worst, 8.0) << "at x=" << worst_x;
+  }
+}
+
+TEST(Elementwise, SiluAndQuickGelu) {
+  const std::vector<float> in = dense_inputs(-95.0, 95.0, 190001);
+  for (bool portable : kPaths) {
+    PathGuard guard(portable);
+    SCOPED_TRACE(portable ? "portable" : "avx2");
+    std::vector<float> s = in, q = in;
+    silu_inplace(s.data(), static_cast<int64_t>(s.size()));
+    quick_gelu_inplace(q.data(), static_cast<int64_t>(q.size()));
+    double ws = 0.0, wq = 0.0;
+    for (size_t i = 0; i < in.size(); ++i) {
+      const double x = in[i];
+      ws = std::max(ws, ulps(s[i], x / (1.0 + std::exp(-x)), 1e-36));
+      const double kx = static_cast<double>(1.702f * in[i]);  // float recipe: 1.702 * x rounded to float
+      wq = std::max(wq, ulps(q[i], x / (1.0 + std::exp(-kx)), 1e-36));
+    }
+    EXPECT_LE(ws, 4.0);
+    EXPECT_LE(wq, 4.0);
+  }
+}
+
+TEST(Elementwise, GegluValueTimesGeluOfGate) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> nd(0.0f, 2.0f);
+  for (bool portable : kPaths) {
+    PathGuard guard(portable);
+    for (auto [rows, d] : {std::pair<int64_t, int64_t>{1, 1}, {3, 13}, {2, 16}, {5, 37}, {300, 200}}) {
+      SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " rows=" << rows << " d=" << d);
+      std::vector<float> p(rows * 2 * d), out(rows * d, -7.0f);
+      for (float& v : p) v = nd(rng);
+      geglu(p.data(), rows, d, out.data());
+      for (int64_t r = 0; r < rows; ++r)
+        for (int64_t i = 0; i < d; ++i) {
+          const double a = p[r * 2 * d + i], g = p[r * 2 * d + d + i];
+          const double ref = a * 0.5 * g * std::erfc(-g / std::sqrt(2.0));
+          ASSERT_NEAR(out[r * d + i], ref, 1e-6 * std::fabs(a * g) + 1e-30) << "r=" << r << " i=" << i;
+        }
+    }
+  }
+}
+
+TEST(Elementwise, UpsampleNearest2x) {
+  for (auto [planes, h, w] : {std::tuple<int64_t, int64_t, int64_t>{1, 1, 1}, {3, 1, 5}, {2, 3, 1}, {4, 5, 7}}) {
+    std::vector<float> x(planes * h * w), y(planes * 4 * h * w, -1.0f);
+    for (size_t i = 0; i < x.size(); ++i) x[i] = static_cast<float>(i) * 0.5f - 3.0f;
+    upsample_nearest2x(x.data(), planes, h, w, y.data());
+    for (int64_t p = 0; p < planes; ++p)
+      for (int64_t i = 0; i < 2 * h; ++i)
+        for (int64_t j = 0; j < 2 * w; ++j)
+          ASSERT_EQ(y[(p * 2 * h + i) * 2 * w + j], x[(p * h + i / 2) * w + j / 2]);
+  }
+}
+
+TEST(Elementwise, TimestepEmbeddingSpecCheckValues) {
+  const float t = static_cast<float>(1.6377700567245483);
+  std::vector<float> out(320);
+  timestep_embedding(&t, 1, 320, out.data());
+  EXPECT_NEAR(out[0], -0.0669236705, 2e-7);
+  EXPECT_NEAR(out[1], 0.0246392153, 2e-7);
+  EXPECT_NEAR(out[159], 1.0, 2e-7);
+  EXPECT_NEAR(out[160], 0.99775809, 2e-7);
+  EXPECT_NEAR(out[319], 0.0001734814, 2e-9);
+
+  const float ids[3] = {4.0f, 127.0f, 0.02f};  // added_time_ids, each Sin(., 256)
+  std::vector<float> aug(3 * 256);
+  timestep_embedding(ids, 3, 256, aug.data());
+  EXPECT_NEAR(aug[0], -0.653643608, 2e-7);
+  EXPECT_NEAR(aug[128], -0.756802499, 2e-7);
+  EXPECT_NEAR(aug[256], 0.232359096, 2e-6);  // arg 127 carries float rounding
+  EXPECT_NEAR(aug[512], 0.999800026, 2e-7);
+  EXPECT_NEAR(aug[640], 0.0199986659, 2e-8);
+}
+
+TEST(Elementwise, TimestepEmbeddingMatchesFormula) {
+  const float t[2] = {0.0f, 3.25f};
+  const int64_t dim = 6, half = 3;
+  std::vector<float> out(2 * dim);
+  timestep_embedding(t, 2, dim, out.data());
+  for (int r = 0; r < 2; ++r)
+    for (int i = 0; i < half; ++i) {
+      const double arg = t[r] * std::exp(-std::log(10000.0) * i / half);
+      EXPECT_NEAR(out[r * dim + i], std::cos(arg), 1e-6);
+      EXPECT_NEAR(out[r * dim + half + i], std::sin(arg), 1e-6);
+    }
+  EXPECT_THROW(timestep_embedding(t, 1, 5, out.data()), std::exception);
+}
+
+TEST(Elementwise, BlendAndAdd) {
+  for (bool portable : kPaths) {
+    PathGuard guard(portable);
+    for (int64_t n : {1, 7, 37, 100003}) {
+      SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " n=" << n);
+      std::vector<float> x(n), y(n);
+      for (int64_t i = 0; i < n; ++i) x[i] = std::sin(0.1f * i), y[i] = std::cos(0.37f * i);
+      std::vector<float> b = y, s = y;
+      blend_inplace(b.data(), x.data(), 0.3f, n);
+      add_inplace(s.data(), x.data(), n);
+      for (int64_t i = 0; i < n; ++i) {
+        ASSERT_NEAR(b[i], 0.3 * x[i] + 0.7 * y[i], 3e-7);
+        ASSERT_NEAR(s[i], static_cast<double>(x[i]) + y[i], 3e-7);
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace egopd
