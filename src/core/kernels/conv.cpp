@@ -1,76 +1,219 @@
-// Convolutions (simple portable version: im2col per frame + gemm; the implicit-GEMM version replaces it).
+// Convolutions as implicit GEMMs on the SGEMM engine: out[cout, oh*ow] = W[cout, cin*kh*kw] · col[cin*kh*kw, oh*ow]
+// per frame, where the B panels of col are packed straight from the input (never a whole im2col); frames are the
+// engine's column segments, so the weight panels are packed once per column block, not once per frame.
 #include "core/kernels/conv.h"
 
-#include <vector>
+#include <algorithm>
+#include <string>
 
+#include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/conv_internal.h"
+#include "core/kernels/gemm_internal.h"
 
 namespace egopd {
 
+using gemm_detail::NR;
+
+namespace {
+
+void check_weight(const Operand& w, const char* what) {
+  if (w.dtype != DType::F32 && w.dtype != DType::F16 && w.dtype != DType::BF16 && w.dtype != DType::I8)
+    throw Error(std::string(what) + ": unsupported weight dtype " + dtype_name(w.dtype));
+  if (w.dtype == DType::I8 && !w.scale) throw Error(std::string(what) + ": I8 weight has no scale");
+}
+
+// Implicit im2col of one frame: B(k, n) with k = (c*kh + ky)*kw + kx, n = oy*ow + ox.
+struct Im2colB : gemm_detail::BSource {
+  const float* x;
+  int64_t h, w, oh, ow;
+  Conv2dGeom g;
+  bool shift;  // stride 1 and ow == w: column n of row k reads the frame at flat index n + (ky-ph)*w + (kx-pw)
+
+  Im2colB(const float* x_, int64_t h_, int64_t w_, const Conv2dGeom& g_)
+      : x(x_), h(h_), w(w_), oh(g_.out_h(h_)), ow(g_.out_w(w_)), g(g_) {
+    shift = g.stride_h == 1 && g.stride_w == 1 && ow == w && g.kh * g.kw <= conv_detail::kMaxTaps;
+  }
+
+  void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override {
+    const float* xf = x + seg * g.cin * h * w;
+    if (shift) {
+      conv_detail::ShiftGeom sg{h, w, g.kh, g.kw, g.pad_h, g.pad_w};
+      if (use_avx2())
+        conv_detail::pack_im2col_shift_avx2(xf, sg, k0, kc, n0, nr, dst);
+      else
+        conv_detail::pack_im2col_shift_portable(xf, sg, k0, kc, n0, nr, dst);
+      return;
+    }
+    // General geometry (strided, patch embedding): per-column input origin, then one gather per element.
+    int64_t iy0[NR], ix0[NR];
+    for (int j = 0; j < nr; ++j) {
+      const int64_t n = n0 + j;
+      iy0[j] = (n / ow) * g.stride_h - g.pad_h;
+      ix0[j] = (n % ow) * g.stride_w - g.pad_w;
+    }
+    const int64_t taps = g.kh * g.kw;
+    int64_t c = k0 / taps, ky = (k0 % taps) / g.kw, kx = k0 % g.kw;
+    for (int64_t k = 0; k < kc; ++k) {
+      float* d = dst + k * NR;
+      const float* xc = xf + c * h * w;
+      for (int j = 0; j < nr; ++j) {
+        const int64_t iy = iy0[j] + ky, ix = ix0[j] + kx;
+        d[j] = (iy >= 0 && iy < h && ix >= 0 && ix < w) ? xc[iy * w + ix] : 0.0f;
+      }
+      for (int j = nr; j < NR; ++j) d[j] = 0.0f;
+      if (++kx == g.kw) {
+        kx = 0;
+        if (++ky == g.kh) ky = 0, ++c;
+      }
+    }
+  }
+};
+
+// Temporal conv weight [cout, cin, 3] seen as A [cout, ntaps*cin] with column kk = (tap - tap0)*cin + c.
+struct TemporalA : gemm_detail::ASource {
+  Operand wt;
+  int64_t cin, tap0;
+  TemporalA(const Operand& w, int64_t cin_, int64_t tap0_) : wt(w), cin(cin_), tap0(tap0_) {}
+  void pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override {
+    using gemm_detail::MR;
+    const size_t es = dtype_size(wt.dtype);
+    for (int i = 0; i < mr; ++i) {
+      const int64_t o = m0 + i;
+      const char* row = static_cast<const char*>(wt.data) + size_t(o * 3 * cin) * es;
+      const float scale = wt.dtype == DType::I8 ? wt.scale[o] : 1.0f;
+      int64_t tap = tap0 + k0 / cin, c = k0 % cin;
+      for (int64_t k = 0; k < kc; ++k) {
+        const char* e = row + size_t(c * 3 + tap) * es;
+        float v;
+        switch (wt.dtype) {
+          case DType::F32: v = *reinterpret_cast<const float*>(e); break;
+          case DType::F16: v = half_to_float(*reinterpret_cast<const uint16_t*>(e)); break;
+          case DType::BF16: v = bf16_to_float(*reinterpret_cast<const uint16_t*>(e)); break;
+          default: v = float(*reinterpret_cast<const int8_t*>(e)) * scale; break;
+        }
+        dst[k * MR + i] = v;
+        if (++c == cin) c = 0, ++tap;
+      }
+    }
+    for (int i = mr; i < MR; ++i)
+      for (int64_t k = 0; k < kc; ++k) dst[k * MR + i] = 0.0f;
+  }
+};
+
+// Frames t-1, t, t+1 of one video are consecutive [cin, hw] blocks, so B rows kk = (tap - tap0)*cin + c of output
+// frame s are the contiguous rows of x starting at frame s + tap0 - 1; taps that fall outside the video are zero.
+struct TemporalB : gemm_detail::BSource {
+  const float* x;
+  int64_t f, cin, hw, tap0;
+  TemporalB(const float* x_, int64_t f_, int64_t cin_, int64_t hw_, int64_t tap0_)
+      : x(x_), f(f_), cin(cin_), hw(hw_), tap0(tap0_) {}
+  void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override {
+    const int64_t t = seg % f;
+    for (int64_t k = k0; k < k0 + kc;) {
+      const int64_t tap = tap0 + k / cin;
+      const int64_t run = std::min(k0 + kc, (k / cin + 1) * cin) - k;  // rows of this tap in the block
+      float* d = dst + (k - k0) * NR;
+      const int64_t src_t = t + tap - 1;
+      if (src_t < 0 || src_t >= f) {
+        std::fill(d, d + run * NR, 0.0f);
+      } else {
+        const float* p = x + ((seg + tap - 1) * cin + k % cin) * hw + n0;
+        if (use_avx2())
+          gemm_detail::pack_b_avx2(p, DType::F32, hw, false, run, nr, d);
+        else
+          gemm_detail::pack_b_portable(p, DType::F32, hw, false, nullptr, run, nr, d);
+      }
+      k += run;
+    }
+  }
+};
+
+}  // namespace
+
+namespace conv_detail {
+
+void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks) {
+  for (int64_t ky = 0; ky < s.kh; ++ky)
+    for (int64_t kx = 0; kx < s.kw; ++kx) {
+      uint16_t m = 0;
+      for (int j = 0; j < nr; ++j) {
+        const int64_t n = n0 + j, iy = n / s.w + ky - s.ph, ix = n % s.w + kx - s.pw;
+        if (iy >= 0 && iy < s.h && ix >= 0 && ix < s.w) m |= uint16_t(1u << j);
+      }
+      masks[ky * s.kw + kx] = m;
+    }
+}
+
+void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
+                                float* dst) {
+  uint16_t masks[kMaxTaps];
+  shift_masks(s, n0, nr, masks);
+  const int64_t taps = s.kh * s.kw;
+  int64_t c = k0 / taps, tap = k0 % taps;
+  for (int64_t k = 0; k < kc; ++k) {
+    const int64_t ky = tap / s.kw, kx = tap % s.kw;
+    const float* src = xf + c * s.h * s.w + n0 + (ky - s.ph) * s.w + (kx - s.pw);
+    const unsigned m = masks[tap];
+    float* d = dst + k * NR;
+    for (int j = 0; j < NR; ++j) d[j] = (m >> j) & 1u ? src[j] : 0.0f;
+    if (++tap == taps) tap = 0, ++c;
+  }
+}
+
+}  // namespace conv_detail
+
 void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
             const Conv2dGeom& g, float* y, Act act, bool accumulate) {
-  const int64_t oh = g.out_h(h), ow = g.out_w(w), ohw = oh * ow;
+  check_weight(weight, "conv2d");
+  const int64_t oh = g.out_h(h), ow = g.out_w(w);
+  if (n <= 0 || oh <= 0 || ow <= 0 || g.cout <= 0) return;
   const int64_t K = g.cin * g.kh * g.kw;
-  std::vector<float> col(size_t(K) * ohw);
-  Operand wa = weight;
+  Operand wa = weight;  // [cout, cin*kh*kw] row-major
   wa.trans = false;
   wa.ld = K;
-  Epilogue ep{bias, true, act, accumulate};
-  for (int64_t f = 0; f < n; ++f) {
-    const float* xf = x + f * g.cin * h * w;
-    // [cin, h, w] -> col [cin*kh*kw, oh*ow]
-    for (int64_t c = 0; c < g.cin; ++c)
-      for (int64_t ky = 0; ky < g.kh; ++ky)
-        for (int64_t kx = 0; kx < g.kw; ++kx) {
-          float* row = &col[((c * g.kh + ky) * g.kw + kx) * ohw];
-          for (int64_t oy = 0; oy < oh; ++oy)
-            for (int64_t ox = 0; ox < ow; ++ox) {
-              int64_t iy = oy * g.stride_h - g.pad_h + ky, ix = ox * g.stride_w - g.pad_w + kx;
-              row[oy * ow + ox] = (iy >= 0 && iy < h && ix >= 0 && ix < w) ? xf[(c * h + iy) * w + ix] : 0.0f;
-            }
-        }
-    gemm(g.cout, ohw, K, wa, f32_operand(col.data(), ohw), y + f * g.cout * ohw, ohw, ep);
+  gemm_detail::OperandA a(wa);
+  gemm_detail::GemmJob job;
+  job.M = g.cout;
+  job.K = K;
+  job.segments = n;
+  job.seg_cols = oh * ow;
+  job.a = &a;
+  job.c = y;
+  job.ldc = oh * ow;
+  job.c_seg_stride = g.cout * oh * ow;
+  job.ep = Epilogue{bias, true, act, accumulate};
+  if (g.kh == 1 && g.kw == 1 && g.stride_h == 1 && g.stride_w == 1 && g.pad_h == 0 && g.pad_w == 0) {
+    gemm_detail::OperandB b(f32_operand(x, h * w), g.cin * h * w);  // the frame itself is col [cin, h*w]
+    job.b = &b;
+    gemm_detail::run_gemm(job);
+  } else {
+    Im2colB b(x, h, w, g);
+    job.b = &b;
+    gemm_detail::run_gemm(job);
   }
 }
 
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                     const float* bias, int64_t cout, float* y, Act act, bool accumulate) {
-  // Per tap k: y[b,t] += W[:,:,k] · x[b,t+k-1]; the weight [cout, cin, 3] seen with column stride 3.
-  // Simple version: gather the tap matrix, then three gemms (the first one carries bias, the last the epilogue).
-  std::vector<float> tmp(size_t(cout) * hw);
-  const size_t esize = dtype_size(weight.dtype);
-  for (int64_t bi = 0; bi < b; ++bi)
-    for (int64_t t = 0; t < f; ++t) {
-      std::fill(tmp.begin(), tmp.end(), 0.0f);
-      for (int k = 0; k < 3; ++k) {
-        int64_t ts = t + k - 1;
-        if (ts < 0 || ts >= f) continue;
-        // Weight tap k: element (o, c) at o*3*cin + c*3 + k; no stride in Operand, so gather it.
-        std::vector<float> wk(size_t(cout) * cin);
-        for (int64_t o = 0; o < cout; ++o)
-          for (int64_t c = 0; c < cin; ++c) {
-            const char* p = static_cast<const char*>(weight.data) + size_t(o * 3 * cin + c * 3 + k) * esize;
-            float v;
-            switch (weight.dtype) {
-              case DType::F32: v = *reinterpret_cast<const float*>(p); break;
-              case DType::F16: v = half_to_float(*reinterpret_cast<const uint16_t*>(p)); break;
-              case DType::BF16: v = bf16_to_float(*reinterpret_cast<const uint16_t*>(p)); break;
-              case DType::I8: v = float(*reinterpret_cast<const int8_t*>(p)) * weight.scale[o]; break;
-              default: throw Error("conv_temporal3: unsupported weight dtype");
-            }
-            wk[o * cin + c] = v;
-          }
-        Epilogue ep{nullptr, true, Act::None, true};
-        gemm(cout, hw, cin, f32_operand(wk.data(), cin), f32_operand(x + (bi * f + ts) * cin * hw, hw), tmp.data(),
-             hw, ep);
-      }
-      float* yo = y + (bi * f + t) * cout * hw;
-      for (int64_t o = 0; o < cout; ++o)
-        for (int64_t p = 0; p < hw; ++p) {
-          float v = apply_act(act, tmp[o * hw + p] + (bias ? bias[o] : 0.0f));
-          yo[o * hw + p] = accumulate ? yo[o * hw + p] + v : v;
-        }
-    }
+  check_weight(weight, "conv_temporal3");
+  if (b <= 0 || f <= 0 || hw <= 0 || cout <= 0) return;
+  // One frame only: just the centre tap (the others always see zero padding).
+  const int64_t tap0 = f == 1 ? 1 : 0, ntaps = f == 1 ? 1 : 3;
+  TemporalA a(weight, cin, tap0);
+  TemporalB bsrc(x, f, cin, hw, tap0);
+  gemm_detail::GemmJob job;
+  job.M = cout;
+  job.K = ntaps * cin;
+  job.segments = b * f;
+  job.seg_cols = hw;
+  job.a = &a;
+  job.b = &bsrc;
+  job.c = y;
+  job.ldc = hw;
+  job.c_seg_stride = cout * hw;
+  job.ep = Epilogue{bias, true, act, accumulate};
+  gemm_detail::run_gemm(job);
 }
 
 }  // namespace egopd

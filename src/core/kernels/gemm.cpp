@@ -1,12 +1,19 @@
-// SGEMM driver (simple portable version; the blocked, packed implementation replaces it).
+// SGEMM driver: Goto/BLIS blocking (NC columns x KC depth B panels shared by the team, MC x KC A blocks per
+// thread, MR x NR micro-tiles), OpenMP across M blocks (or across N panels when M is small), epilogue fused into
+// the micro-kernel store of the last K pass.
 #include "core/kernels/gemm.h"
 
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <vector>
 
+#include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/gemm_internal.h"
+#include "core/threading.h"
 
 namespace egopd {
 
@@ -20,42 +27,200 @@ float apply_act(Act act, float x) {
   return x;
 }
 
-// Element (r, c) of a logical matrix operand as float32; `chan` is the output channel for the I8 scale.
-static float operand_at(const Operand& op, int64_t r, int64_t c, int64_t chan) {
-  int64_t idx = op.trans ? c * op.ld + r : r * op.ld + c;
-  switch (op.dtype) {
-    case DType::F32: return static_cast<const float*>(op.data)[idx];
-    case DType::F16: return half_to_float(static_cast<const uint16_t*>(op.data)[idx]);
-    case DType::BF16: return bf16_to_float(static_cast<const uint16_t*>(op.data)[idx]);
-    case DType::I8: return float(static_cast<const int8_t*>(op.data)[idx]) * op.scale[chan];
-    default: throw Error(std::string("gemm: unsupported operand dtype ") + dtype_name(op.dtype));
+namespace gemm_detail {
+namespace {
+
+// Block sizes for a core with 48 KB L1d, 1 MB L2 and a shared L3: a KC x NR B micro-panel (24 KB) stays in L1,
+// an MC x KC A block (288 KB) in L2, the KC x NC B block (3 MB) in L3.
+constexpr int64_t kKcMax = 384;
+constexpr int64_t kMcMax = 192;
+constexpr int64_t kNcMax = 2048;
+constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
+
+// Grow-only 64-byte aligned scratch, one per thread (OpenMP threads persist, so it is allocated once).
+class Scratch {
+ public:
+  ~Scratch() { std::free(p_); }
+  float* get(size_t n) {
+    if (n > n_) {
+      std::free(p_);
+      size_t bytes = (n * sizeof(float) + 63) / 64 * 64;
+      p_ = static_cast<float*>(std::aligned_alloc(64, bytes));
+      if (!p_) throw Error("gemm: out of memory for " + std::to_string(bytes) + " bytes of packing scratch");
+      n_ = bytes / sizeof(float);
+    }
+    return p_;
   }
+
+ private:
+  float* p_ = nullptr;
+  size_t n_ = 0;
+};
+thread_local Scratch tl_a_pack, tl_b_pack;
+
+int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
+
+// accumulate + activation over several K passes: the activation needs the full sum, so compute it into a
+// temporary first (rare: residual adds carry no activation in the models).
+void run_gemm_via_temp(const GemmJob& job) {
+  const int64_t seg_elems = job.M * job.seg_cols;
+  std::vector<float> tmp(size_t(job.segments * seg_elems));
+  GemmJob t = job;
+  t.c = tmp.data();
+  t.ldc = job.seg_cols;
+  t.c_seg_stride = seg_elems;
+  t.ep.act = Act::None;
+  t.ep.accumulate = false;
+  run_gemm(t);
+  for (int64_t s = 0; s < job.segments; ++s)
+    for (int64_t i = 0; i < job.M; ++i) {
+      const float* src = tmp.data() + s * seg_elems + i * job.seg_cols;
+      float* dst = job.c + s * job.c_seg_stride + i * job.ldc;
+      for (int64_t j = 0; j < job.seg_cols; ++j) dst[j] += apply_act(job.ep.act, src[j]);
+    }
+}
+
+}  // namespace
+
+void run_gemm(const GemmJob& job) {
+  const int64_t M = job.M, K = job.K;
+  if (M <= 0 || job.segments <= 0 || job.seg_cols <= 0) return;
+  const int64_t npc = std::max<int64_t>(1, ceil_div(K, kKcMax));
+  const int64_t kc_blk = K > 0 ? ceil_div(K, npc) : 0;
+  if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
+
+  const MicroKernel uk = use_avx2() ? microkernel_avx2 : microkernel_portable;
+  const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
+  const int64_t npanels = job.segments * panels_per_seg;
+  const int64_t njc = ceil_div(npanels * NR, kNcMax);
+  const int64_t jc_panels = ceil_div(npanels, njc);
+  const int64_t mpanels = ceil_div(M, MR);
+
+  const double flops = 2.0 * double(M) * double(job.segments * job.seg_cols) * double(K);
+  int threads = omp_in_parallel() ? 1 : num_threads();
+  if (flops < kSerialFlops) threads = 1;
+  // Split M across threads when every thread gets a few micro-panels of rows, else split the N panels.
+  const bool split_m = mpanels >= int64_t(threads) * 4;
+  threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
+
+  const bool direct_a = job.a->direct != nullptr;
+  const int64_t b_block = kc_blk * jc_panels * NR;  // floats of one B block
+  const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
+  float* b_shared = tl_b_pack.get(size_t(b_block) * (double_buffer ? 2 : 1) + 16);
+  const Epilogue& ep = job.ep;
+
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+    const int nth = omp_get_num_threads(), tid = omp_get_thread_num();
+    float* a_pack = direct_a ? nullptr : tl_a_pack.get(size_t(kMcMax) * kc_blk + 16);
+    // This thread's rows (split_m) or all rows.
+    const int64_t m_lo = split_m ? mpanels * tid / nth * MR : 0;
+    const int64_t m_hi = split_m ? std::min(M, mpanels * (tid + 1) / nth * MR) : M;
+    int64_t iter = 0;
+    for (int64_t jc = 0; jc < njc; ++jc) {
+      const int64_t p_begin = jc * jc_panels, p_end = std::min(npanels, p_begin + jc_panels);
+      const int64_t np = p_end - p_begin;
+      // Panels this thread packs, and panels it multiplies (all of them when splitting M).
+      const int64_t pk_lo = p_begin + np * tid / nth, pk_hi = p_begin + np * (tid + 1) / nth;
+      const int64_t pm_lo = split_m ? p_begin : pk_lo, pm_hi = split_m ? p_end : pk_hi;
+      for (int64_t pc = 0; pc < npc; ++pc, ++iter) {
+        const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
+        float* b_pack = b_shared + (double_buffer ? (iter & 1) * b_block : 0);
+        if (split_m && nth > 1 && !double_buffer && iter > 0) {
+#pragma omp barrier
+        }
+        for (int64_t p = pk_lo; p < pk_hi; ++p) {
+          const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
+          const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
+          job.b->pack(seg, k0, kc, n0, nr, b_pack + (p - p_begin) * kc * NR);
+        }
+        if (split_m && nth > 1) {
+#pragma omp barrier
+        }
+        const bool last = pc == npc - 1;
+        TileEpilogue te;
+        te.act = last ? ep.act : Act::None;
+        te.load_c = pc > 0 || (ep.accumulate && ep.act == Act::None);
+        te.add_after = ep.accumulate && ep.act != Act::None;
+        const float* bias_row = last && ep.bias && ep.bias_per_row ? ep.bias : nullptr;
+        const float* bias_col = last && ep.bias && !ep.bias_per_row ? ep.bias : nullptr;
+        for (int64_t ic = m_lo; ic < m_hi; ic += kMcMax) {
+          const int64_t mc = std::min(kMcMax, m_hi - ic);
+          if (!direct_a)
+            for (int64_t ir = 0; ir < mc; ir += MR)
+              job.a->pack(ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
+          for (int64_t p = pm_lo; p < pm_hi; ++p) {
+            const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
+            const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
+            const float* bp = b_pack + (p - p_begin) * kc * NR;
+            float* cp = job.c + seg * job.c_seg_stride + n0;
+            te.bias_col = bias_col ? bias_col + n0 : nullptr;
+            for (int64_t ir = 0; ir < mc; ir += MR) {
+              const int64_t i = ic + ir;
+              const int mr = int(std::min<int64_t>(MR, mc - ir));
+              te.bias_row = bias_row ? bias_row + i : nullptr;
+              if (direct_a)
+                uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
+              else
+                uk(kc, a_pack + ir * kc, 1, MR, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
+            }
+          }
+        }
+      }
+    }
+  }
+}
+
+OperandA::OperandA(const Operand& o) : op(o) {
+  if (o.dtype == DType::F32 && !o.trans) {
+    direct = static_cast<const float*>(o.data);
+    lda = o.ld;
+  }
+}
+
+void OperandA::pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
+  const int64_t off = op.trans ? k0 * op.ld + m0 : m0 * op.ld + k0;
+  const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
+  if (op.dtype != DType::I8 && use_avx2())
+    pack_a_avx2(p, op.dtype, op.ld, op.trans, mr, kc, dst);
+  else
+    pack_a_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
+}
+
+void OperandB::pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const {
+  const int64_t off = seg * seg_stride + (op.trans ? n0 * op.ld + k0 : k0 * op.ld + n0);
+  const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
+  if (op.dtype != DType::I8 && use_avx2())
+    pack_b_avx2(p, op.dtype, op.ld, op.trans, kc, nr, dst);
+  else
+    pack_b_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
+}
+
+}  // namespace gemm_detail
+
+static void check_operand(const Operand& op, const char* name) {
+  if (op.dtype != DType::F32 && op.dtype != DType::F16 && op.dtype != DType::BF16 && op.dtype != DType::I8)
+    throw Error(std::string("gemm: operand ") + name + " has unsupported dtype " + dtype_name(op.dtype));
+  if (op.dtype == DType::I8 && !op.scale) throw Error(std::string("gemm: I8 operand ") + name + " has no scale");
 }
 
 void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, float* C, int64_t ldc,
           const Epilogue& ep) {
   if (M <= 0 || N <= 0) return;
-  EGOPD_CHECK(A.dtype != DType::I8 || A.scale, "gemm: I8 operand A needs a scale");
-  EGOPD_CHECK(B.dtype != DType::I8 || B.scale, "gemm: I8 operand B needs a scale");
-  // A as float rows [M,K], B as float columns [N,K].
-  std::vector<float> a(size_t(M) * K), bt(size_t(N) * K);
-  for (int64_t i = 0; i < M; ++i)
-    for (int64_t k = 0; k < K; ++k) a[i * K + k] = operand_at(A, i, k, i);
-  for (int64_t j = 0; j < N; ++j)
-    for (int64_t k = 0; k < K; ++k) bt[j * K + k] = operand_at(B, k, j, j);
-#pragma omp parallel for schedule(static) if (!omp_in_parallel() && M * N * K > 65536)
-  for (int64_t i = 0; i < M; ++i) {
-    for (int64_t j = 0; j < N; ++j) {
-      const float* ai = &a[i * K];
-      const float* bj = &bt[j * K];
-      float s = 0;
-      for (int64_t k = 0; k < K; ++k) s += ai[k] * bj[k];
-      if (ep.bias) s += ep.bias_per_row ? ep.bias[i] : ep.bias[j];
-      s = apply_act(ep.act, s);
-      float& c = C[i * ldc + j];
-      c = ep.accumulate ? c + s : s;
-    }
-  }
+  check_operand(A, "A");
+  check_operand(B, "B");
+  gemm_detail::OperandA a(A);
+  gemm_detail::OperandB b(B);
+  gemm_detail::GemmJob job;
+  job.M = M;
+  job.K = K;
+  job.seg_cols = N;
+  job.a = &a;
+  job.b = &b;
+  job.c = C;
+  job.ldc = ldc;
+  job.ep = ep;
+  gemm_detail::run_gemm(job);
 }
 
 }  // namespace egopd

@@ -1,0 +1,23 @@
+#pragma once
+// Private helpers of the convolution kernels: implicit-im2col packing for stride-1 "same-width" convolutions,
+// where row k = (c, ky, kx) of the im2col matrix is the frame shifted by (ky - ph, kx - pw) with zeros outside.
+#include <cstdint>
+
+namespace egopd::conv_detail {
+
+constexpr int64_t kMaxTaps = 64;  // kh*kw handled by the shift packer (larger kernels take the gather path)
+
+struct ShiftGeom {
+  int64_t h, w, kh, kw, ph, pw;
+};
+
+// masks[ky*kw + kx] bit j: column n0 + j (j < nr) reads inside the frame for that tap.
+void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks);
+
+// dst[k*16 + j] = col(k0 + k, n0 + j) of frame xf [cin, h, w]; columns >= nr are zero.
+void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
+                                float* dst);
+void pack_im2col_shift_avx2(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
+                            float* dst);
+
+}  // namespace egopd::conv_detail

@@ -1,0 +1,229 @@
+// AVX2/FMA/F16C micro-kernel (6 x 16, 12 ymm accumulators) and packing with on-the-fly F16/BF16 conversion.
+// Only called after egopd::use_avx2(); everything below the pragma is plain static code (no library inlines).
+#include <cstdint>
+
+#include "core/kernels/gemm_internal.h"
+
+#pragma GCC target("avx2,fma,f16c")
+#include <immintrin.h>
+
+namespace egopd::gemm_detail {
+
+namespace {
+
+// ---- micro-kernel -------------------------------------------------------------------------------------------
+
+#define EGOPD_FMA_ROW(c0, c1, aptr)              \
+  do {                                           \
+    const __m256 av = _mm256_broadcast_ss(aptr); \
+    c0 = _mm256_fmadd_ps(av, b0, c0);            \
+    c1 = _mm256_fmadd_ps(av, b1, c1);            \
+  } while (0)
+
+// One full row of the tile: v0/v1 = columns 0-7 / 8-15 of the sum.
+inline void store_row(float* c, __m256 v0, __m256 v1, int i, const TileEpilogue& ep) {
+  if (ep.load_c) {
+    v0 = _mm256_add_ps(v0, _mm256_loadu_ps(c));
+    v1 = _mm256_add_ps(v1, _mm256_loadu_ps(c + 8));
+  }
+  if (ep.bias_row) {
+    const __m256 br = _mm256_broadcast_ss(ep.bias_row + i);
+    v0 = _mm256_add_ps(v0, br);
+    v1 = _mm256_add_ps(v1, br);
+  }
+  if (ep.bias_col) {
+    v0 = _mm256_add_ps(v0, _mm256_loadu_ps(ep.bias_col));
+    v1 = _mm256_add_ps(v1, _mm256_loadu_ps(ep.bias_col + 8));
+  }
+  _mm256_storeu_ps(c, v0);
+  _mm256_storeu_ps(c + 8, v1);
+}
+
+}  // namespace
+
+void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
+                      int mr, int nr, const TileEpilogue& ep) {
+  __m256 c00 = _mm256_setzero_ps(), c01 = _mm256_setzero_ps(), c10 = _mm256_setzero_ps(),
+         c11 = _mm256_setzero_ps(), c20 = _mm256_setzero_ps(), c21 = _mm256_setzero_ps(),
+         c30 = _mm256_setzero_ps(), c31 = _mm256_setzero_ps(), c40 = _mm256_setzero_ps(),
+         c41 = _mm256_setzero_ps(), c50 = _mm256_setzero_ps(), c51 = _mm256_setzero_ps();
+  if (a_rs == 1 && a_cs == MR) {  // packed A micro-panel
+    const float* ap = a;
+#pragma GCC unroll 4
+    for (int64_t k = 0; k < kc; ++k) {
+      const __m256 b0 = _mm256_load_ps(b), b1 = _mm256_load_ps(b + 8);
+      EGOPD_FMA_ROW(c00, c01, ap + 0);
+      EGOPD_FMA_ROW(c10, c11, ap + 1);
+      EGOPD_FMA_ROW(c20, c21, ap + 2);
+      EGOPD_FMA_ROW(c30, c31, ap + 3);
+      EGOPD_FMA_ROW(c40, c41, ap + 4);
+      EGOPD_FMA_ROW(c50, c51, ap + 5);
+      ap += MR;
+      b += NR;
+    }
+  } else {  // A in place: row i at a + i*a_rs, consecutive k at stride a_cs; rows >= mr alias the last valid row
+    const int64_t last = mr - 1;
+    const float* a0 = a;
+    const float* a1 = a + (last < 1 ? last : 1) * a_rs;
+    const float* a2 = a + (last < 2 ? last : 2) * a_rs;
+    const float* a3 = a + (last < 3 ? last : 3) * a_rs;
+    const float* a4 = a + (last < 4 ? last : 4) * a_rs;
+    const float* a5 = a + (last < 5 ? last : 5) * a_rs;
+    if (a_cs == 1) {
+#pragma GCC unroll 4
+      for (int64_t k = 0; k < kc; ++k) {
+        const __m256 b0 = _mm256_load_ps(b), b1 = _mm256_load_ps(b + 8);
+        EGOPD_FMA_ROW(c00, c01, a0 + k);
+        EGOPD_FMA_ROW(c10, c11, a1 + k);
+        EGOPD_FMA_ROW(c20, c21, a2 + k);
+        EGOPD_FMA_ROW(c30, c31, a3 + k);
+        EGOPD_FMA_ROW(c40, c41, a4 + k);
+        EGOPD_FMA_ROW(c50, c51, a5 + k);
+        b += NR;
+      }
+    } else {
+      for (int64_t k = 0; k < kc; ++k) {
+        const __m256 b0 = _mm256_load_ps(b), b1 = _mm256_load_ps(b + 8);
+        const int64_t o = k * a_cs;
+        EGOPD_FMA_ROW(c00, c01, a0 + o);
+        EGOPD_FMA_ROW(c10, c11, a1 + o);
+        EGOPD_FMA_ROW(c20, c21, a2 + o);
+        EGOPD_FMA_ROW(c30, c31, a3 + o);
+        EGOPD_FMA_ROW(c40, c41, a4 + o);
+        EGOPD_FMA_ROW(c50, c51, a5 + o);
+        b += NR;
+      }
+    }
+  }
+  if (mr == MR && nr == NR && ep.act == Act::None && !ep.add_after) {
+    store_row(c, c00, c01, 0, ep);
+    store_row(c + ldc, c10, c11, 1, ep);
+    store_row(c + 2 * ldc, c20, c21, 2, ep);
+    store_row(c + 3 * ldc, c30, c31, 3, ep);
+    store_row(c + 4 * ldc, c40, c41, 4, ep);
+    store_row(c + 5 * ldc, c50, c51, 5, ep);
+    return;
+  }
+  alignas(32) float sum[MR * NR];
+  _mm256_store_ps(sum + 0 * NR, c00);
+  _mm256_store_ps(sum + 0 * NR + 8, c01);
+  _mm256_store_ps(sum + 1 * NR, c10);
+  _mm256_store_ps(sum + 1 * NR + 8, c11);
+  _mm256_store_ps(sum + 2 * NR, c20);
+  _mm256_store_ps(sum + 2 * NR + 8, c21);
+  _mm256_store_ps(sum + 3 * NR, c30);
+  _mm256_store_ps(sum + 3 * NR + 8, c31);
+  _mm256_store_ps(sum + 4 * NR, c40);
+  _mm256_store_ps(sum + 4 * NR + 8, c41);
+  _mm256_store_ps(sum + 5 * NR, c50);
+  _mm256_store_ps(sum + 5 * NR + 8, c51);
+  store_tile_scalar(sum, c, ldc, mr, nr, ep);
+}
+
+#undef EGOPD_FMA_ROW
+
+// ---- packing --------------------------------------------------------------------------------------------------
+
+namespace {
+
+// 8 consecutive elements starting at element idx, as float32.
+__attribute__((always_inline)) inline __m256 load8(const void* p, DType dt, int64_t idx) {
+  if (dt == DType::F32) return _mm256_loadu_ps(static_cast<const float*>(p) + idx);
+  const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(static_cast<const uint16_t*>(p) + idx));
+  if (dt == DType::F16) return _mm256_cvtph_ps(h);
+  return _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_cvtepu16_epi32(h), 16));  // BF16
+}
+
+// r[i] (row i, 8 columns) -> r[j] (column j, 8 rows).
+__attribute__((always_inline)) inline void transpose8(__m256* r) {
+  const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
+  const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
+  const __m256 t4 = _mm256_unpacklo_ps(r[4], r[5]), t5 = _mm256_unpackhi_ps(r[4], r[5]);
+  const __m256 t6 = _mm256_unpacklo_ps(r[6], r[7]), t7 = _mm256_unpackhi_ps(r[6], r[7]);
+  const __m256 s0 = _mm256_shuffle_ps(t0, t2, 0x44), s1 = _mm256_shuffle_ps(t0, t2, 0xEE);
+  const __m256 s2 = _mm256_shuffle_ps(t1, t3, 0x44), s3 = _mm256_shuffle_ps(t1, t3, 0xEE);
+  const __m256 s4 = _mm256_shuffle_ps(t4, t6, 0x44), s5 = _mm256_shuffle_ps(t4, t6, 0xEE);
+  const __m256 s6 = _mm256_shuffle_ps(t5, t7, 0x44), s7 = _mm256_shuffle_ps(t5, t7, 0xEE);
+  r[0] = _mm256_permute2f128_ps(s0, s4, 0x20);
+  r[1] = _mm256_permute2f128_ps(s1, s5, 0x20);
+  r[2] = _mm256_permute2f128_ps(s2, s6, 0x20);
+  r[3] = _mm256_permute2f128_ps(s3, s7, 0x20);
+  r[4] = _mm256_permute2f128_ps(s0, s4, 0x31);
+  r[5] = _mm256_permute2f128_ps(s1, s5, 0x31);
+  r[6] = _mm256_permute2f128_ps(s2, s6, 0x31);
+  r[7] = _mm256_permute2f128_ps(s3, s7, 0x31);
+}
+
+// B(k, j) = p[k*ld + j], all 16 columns valid.
+__attribute__((always_inline)) inline void pack_b_rows16(const void* p, DType dt, int64_t ld, int64_t kc, float* dst) {
+  for (int64_t k = 0; k < kc; ++k) {
+    _mm256_store_ps(dst + k * NR, load8(p, dt, k * ld));
+    _mm256_store_ps(dst + k * NR + 8, load8(p, dt, k * ld + 8));
+  }
+}
+
+// B(k, j) = p[j*ld + k], all 16 columns valid: 8 x 8 register transposes; returns the k handled (multiple of 8).
+__attribute__((always_inline)) inline int64_t pack_b_cols16(const void* p, DType dt, int64_t ld, int64_t kc,
+                                                            float* dst) {
+  const int64_t k8 = kc / 8 * 8;
+  for (int64_t k = 0; k < k8; k += 8)
+    for (int g = 0; g < 2; ++g) {
+      __m256 r[8];
+      for (int j = 0; j < 8; ++j) r[j] = load8(p, dt, (g * 8 + j) * ld + k);
+      transpose8(r);
+      for (int q = 0; q < 8; ++q) _mm256_store_ps(dst + (k + q) * NR + g * 8, r[q]);
+    }
+  return k8;
+}
+
+// A(i, k) = p[i*ld + k], 6 rows valid: 8 x 8 transposes of 6 rows (+2 zero rows); returns the k handled.
+__attribute__((always_inline)) inline int64_t pack_a_rows6(const void* p, DType dt, int64_t ld, int64_t kc,
+                                                           float* dst) {
+  const int64_t k8 = kc / 8 * 8;
+  for (int64_t k = 0; k < k8; k += 8) {
+    __m256 r[8];
+    for (int i = 0; i < MR; ++i) r[i] = load8(p, dt, i * ld + k);
+    r[6] = r[7] = _mm256_setzero_ps();
+    transpose8(r);
+    for (int q = 0; q < 8; ++q) {  // column q: lanes 0-5 are the 6 rows
+      float* d = dst + (k + q) * MR;
+      _mm_storeu_ps(d, _mm256_castps256_ps128(r[q]));
+      _mm_storel_pi(reinterpret_cast<__m64*>(d + 4), _mm256_extractf128_ps(r[q], 1));
+    }
+  }
+  return k8;
+}
+
+}  // namespace
+
+void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, int64_t kc, int nr, float* dst) {
+  if (nr != NR || !(dt == DType::F32 || dt == DType::F16 || dt == DType::BF16))
+    return pack_b_portable(p, dt, ld, trans, nullptr, kc, nr, dst);
+  const int64_t es = dt == DType::F32 ? 4 : 2;
+  if (!trans) {
+    if (dt == DType::F32) pack_b_rows16(p, DType::F32, ld, kc, dst);
+    else if (dt == DType::F16) pack_b_rows16(p, DType::F16, ld, kc, dst);
+    else pack_b_rows16(p, DType::BF16, ld, kc, dst);
+    return;
+  }
+  int64_t done;
+  if (dt == DType::F32) done = pack_b_cols16(p, DType::F32, ld, kc, dst);
+  else if (dt == DType::F16) done = pack_b_cols16(p, DType::F16, ld, kc, dst);
+  else done = pack_b_cols16(p, DType::BF16, ld, kc, dst);
+  if (done < kc)
+    pack_b_portable(static_cast<const char*>(p) + done * es, dt, ld, true, nullptr, kc - done, nr, dst + done * NR);
+}
+
+void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, int mr, int64_t kc, float* dst) {
+  if (trans || mr != MR || !(dt == DType::F32 || dt == DType::F16 || dt == DType::BF16))
+    return pack_a_portable(p, dt, ld, trans, nullptr, mr, kc, dst);
+  const int64_t es = dt == DType::F32 ? 4 : 2;
+  int64_t done;
+  if (dt == DType::F32) done = pack_a_rows6(p, DType::F32, ld, kc, dst);
+  else if (dt == DType::F16) done = pack_a_rows6(p, DType::F16, ld, kc, dst);
+  else done = pack_a_rows6(p, DType::BF16, ld, kc, dst);
+  if (done < kc)
+    pack_a_portable(static_cast<const char*>(p) + done * es, dt, ld, false, nullptr, mr, kc - done, dst + done * MR);
+}
+
+}  // namespace egopd::gemm_detail

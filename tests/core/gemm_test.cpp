@@ -1,0 +1,267 @@
+// SGEMM against a double-precision triple loop: every transpose, operand dtype, epilogue and awkward shape, on both
+// the portable and the AVX2 path. Tolerance from the float32 dot-product error bound:
+//   |err| <= 2 (K + 3) u sum_k |a_ik b_kj| (+ the bias / residual terms) + 8 u |ref|,   u = 2^-24,
+// scaled by the activation's Lipschitz constant (<= 1.2 for SiLU, GELU, QuickGELU).
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/cpu.h"
+#include "core/dtype.h"
+#include "core/kernels/gemm.h"
+#include "core/threading.h"
+
+namespace egopd {
+namespace {
+
+constexpr double kU = 1.0 / 16777216.0;  // 2^-24
+
+double act_ref(Act act, double x) {
+  switch (act) {
+    case Act::None: return x;
+    case Act::SiLU: return x / (1.0 + std::exp(-x));
+    case Act::GELU: return 0.5 * x * (1.0 + std::erf(x / std::sqrt(2.0)));
+    case Act::QuickGELU: return x / (1.0 + std::exp(-1.702 * x));
+  }
+  return x;
+}
+
+// A logical [rows, cols] matrix stored in some dtype, possibly transposed, with a padded leading dimension.
+struct StoredMatrix {
+  int64_t rows = 0, cols = 0, ld = 0;
+  bool trans = false;
+  DType dtype = DType::F32;
+  std::vector<float> f32;
+  std::vector<uint16_t> h16;
+  std::vector<int8_t> i8;
+  std::vector<float> scale;  // I8: per row (A) or per column (B)
+  std::vector<double> value; // exact value of each logical element, row-major [rows, cols]
+
+  StoredMatrix(int64_t r, int64_t c, bool tr, DType dt, bool scale_per_row, std::mt19937& rng)
+      : rows(r), cols(c), trans(tr), dtype(dt) {
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    const int64_t outer = tr ? c : r, inner = tr ? r : c;
+    ld = inner + 3;  // not the dense stride, to catch ld mix-ups
+    const size_t n = size_t(outer * ld);
+    value.assign(size_t(r * c), 0.0);
+    if (dt == DType::I8) {
+      const int64_t nscale = scale_per_row ? r : c;
+      for (int64_t i = 0; i < nscale; ++i) scale.push_back(0.01f + 0.02f * float(i % 5));
+    }
+    f32.assign(n, 0.0f);
+    h16.assign(n, 0);
+    i8.assign(n, 0);
+    std::uniform_int_distribution<int> q(-127, 127);
+    for (int64_t i = 0; i < r; ++i)
+      for (int64_t j = 0; j < c; ++j) {
+        const size_t idx = size_t(tr ? j * ld + i : i * ld + j);
+        double v;
+        switch (dt) {
+          case DType::F32: f32[idx] = u(rng); v = f32[idx]; break;
+          case DType::F16: h16[idx] = float_to_half(u(rng)); v = half_to_float(h16[idx]); break;
+          case DType::BF16: h16[idx] = float_to_bf16(u(rng)); v = bf16_to_float(h16[idx]); break;
+          default: i8[idx] = int8_t(q(rng)); v = double(float(i8[idx]) * scale[scale_per_row ? i : j]); break;
+        }
+        value[size_t(i * c + j)] = v;
+      }
+  }
+  Operand operand() const {
+    const void* p = dtype == DType::F32 ? static_cast<const void*>(f32.data())
+                    : dtype == DType::I8 ? static_cast<const void*>(i8.data())
+                                         : static_cast<const void*>(h16.data());
+    return Operand{p, dtype, ld, trans, scale.empty() ? nullptr : scale.data()};
+  }
+  double at(int64_t i, int64_t j) const { return value[size_t(i * cols + j)]; }
+};
+
+struct Case {
+  int64_t M, N, K;
+  DType adt = DType::F32, bdt = DType::F32;
+  bool ta = false, tb = false;
+  Act act = Act::None;
+  int bias = 0;  // 0 none, 1 per column, 2 per row
+  bool accumulate = false;
+};
+
+std::string describe(const Case& c) {
+  return std::to_string(c.M) + "x" + std::to_string(c.N) + "x" + std::to_string(c.K) + " A " + dtype_name(c.adt) +
+         (c.ta ? "^T" : "") + " B " + dtype_name(c.bdt) + (c.tb ? "^T" : "") + " act " +
+         std::to_string(int(c.act)) + " bias " + std::to_string(c.bias) + (c.accumulate ? " acc" : "");
+}
+
+// Runs gemm on one case and checks every element against the bound; returns the number of failures.
+int run_case(const Case& c, uint32_t seed) {
+  std::mt19937 rng(seed);
+  StoredMatrix A(c.M, c.K, c.ta, c.adt, true, rng), B(c.K, c.N, c.tb, c.bdt, false, rng);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> bias(size_t(c.bias == 2 ? c.M : c.N));
+  for (auto& v : bias) v = u(rng);
+  const int64_t ldc = c.N + 5;
+  std::vector<float> C(size_t(c.M * ldc));
+  for (auto& v : C) v = u(rng);
+  const std::vector<float> C0 = C;
+  Epilogue ep;
+  ep.bias = c.bias ? bias.data() : nullptr;
+  ep.bias_per_row = c.bias == 2;
+  ep.act = c.act;
+  ep.accumulate = c.accumulate;
+  gemm(c.M, c.N, c.K, A.operand(), B.operand(), C.data(), ldc, ep);
+  int bad = 0;
+  for (int64_t i = 0; i < c.M; ++i)
+    for (int64_t j = 0; j < c.N; ++j) {
+      double s = 0, sa = 0;
+      for (int64_t k = 0; k < c.K; ++k) {
+        s += A.at(i, k) * B.at(k, j);
+        sa += std::fabs(A.at(i, k) * B.at(k, j));
+      }
+      if (c.bias) {
+        const double b = bias[size_t(c.bias == 2 ? i : j)];
+        s += b;
+        sa += std::fabs(b);
+      }
+      double ref = act_ref(c.act, s);
+      const double lip = c.act == Act::None ? 1.0 : 1.2;
+      double tol = lip * 2.0 * double(c.K + 3) * kU * sa + 8 * kU * std::fabs(ref) + 1e-30;
+      if (c.accumulate) {
+        ref += C0[size_t(i * ldc + j)];
+        tol += 4 * kU * (std::fabs(C0[size_t(i * ldc + j)]) + std::fabs(ref));
+      }
+      const double got = C[size_t(i * ldc + j)];
+      if (!(std::fabs(got - ref) <= tol)) {
+        if (bad < 3)
+          ADD_FAILURE() << describe(c) << " at (" << i << "," << j << "): got " << got << " want " << ref
+                        << " tol " << tol;
+        ++bad;
+      }
+    }
+  // The padding between rows of C is untouched.
+  for (int64_t i = 0; i < c.M; ++i)
+    for (int64_t j = c.N; j < ldc; ++j)
+      if (C[size_t(i * ldc + j)] != C0[size_t(i * ldc + j)]) {
+        if (bad < 3) ADD_FAILURE() << describe(c) << ": wrote outside C at (" << i << "," << j << ")";
+        ++bad;
+      }
+  return bad;
+}
+
+class GemmTest : public ::testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override {
+    if (GetParam() && !cpu_has_avx2_fma_f16c()) GTEST_SKIP() << "no AVX2/FMA/F16C on this CPU";
+    set_force_portable(!GetParam());
+  }
+  void TearDown() override { set_force_portable(false); }
+};
+
+TEST_P(GemmTest, AwkwardShapesAllTransposes) {
+  uint32_t seed = 1;
+  for (int64_t M : {1, 5, 6, 7, 17, 33, 127})
+    for (int64_t N : {1, 7, 15, 16, 17, 31, 65})
+      for (int64_t K : {1, 7, 17, 31})
+        for (int t = 0; t < 4; ++t) {
+          Case c{M, N, K};
+          c.ta = t & 1;
+          c.tb = t & 2;
+          ASSERT_EQ(run_case(c, seed++), 0);
+        }
+}
+
+TEST_P(GemmTest, LargeAndMultiBlockShapes) {
+  // 300x257x129: tails everywhere; K = 800 and 1000: several K passes; M = 450: several M blocks per thread;
+  // N = 2100: several column blocks; M = 3 with large N: the threads split N instead of M.
+  const Case cases[] = {{300, 257, 129}, {97, 45, 800}, {450, 33, 70}, {13, 2100, 9}, {3, 1000, 40},
+                        {64, 320, 1000}};
+  uint32_t seed = 100;
+  for (Case c : cases)
+    for (int t = 0; t < 4; ++t) {
+      c.ta = t & 1;
+      c.tb = t & 2;
+      ASSERT_EQ(run_case(c, seed++), 0);
+    }
+}
+
+TEST_P(GemmTest, OperandDtypes) {
+  uint32_t seed = 200;
+  for (DType dt : {DType::F16, DType::BF16, DType::I8})
+    for (int t = 0; t < 4; ++t)
+      for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{37, 50, 45}, {12, 32, 16}, {130, 70, 400}}) {
+        Case b{M, N, K, DType::F32, dt, false, bool(t & 1)};  // weights as B (linear layers)
+        Case a{M, N, K, dt, DType::F32, bool(t & 2), false};  // weights as A (convolutions)
+        ASSERT_EQ(run_case(b, seed++), 0);
+        ASSERT_EQ(run_case(a, seed++), 0);
+      }
+}
+
+TEST_P(GemmTest, Epilogues) {
+  uint32_t seed = 300;
+  for (Act act : {Act::None, Act::SiLU, Act::GELU, Act::QuickGELU})
+    for (int bias : {0, 1, 2})
+      for (bool acc : {false, true})
+        for (int64_t K : {19, 900}) {  // one K pass, and several (accumulate + act goes through a temporary)
+          Case c{29, 37, K};
+          c.tb = true;
+          c.act = act;
+          c.bias = bias;
+          c.accumulate = acc;
+          ASSERT_EQ(run_case(c, seed++), 0);
+          Case full{12, 32, K};  // full tiles only: the fused vector epilogue
+          full.act = act;
+          full.bias = bias;
+          full.accumulate = acc;
+          ASSERT_EQ(run_case(full, seed++), 0);
+        }
+}
+
+TEST_P(GemmTest, ZeroDepthGivesBiasAndActivation) {
+  Case c{5, 9, 0};
+  c.bias = 1;
+  c.act = Act::SiLU;
+  EXPECT_EQ(run_case(c, 400), 0);
+  c.accumulate = true;
+  EXPECT_EQ(run_case(c, 401), 0);
+}
+
+TEST_P(GemmTest, SerialInsideParallelRegion) {
+  int bad = 0;
+#pragma omp parallel num_threads(2) reduction(+ : bad)
+  {
+    Case c{70, 90, 500};
+    c.tb = true;
+    c.bias = 1;
+    bad += run_case(c, 500 + uint32_t(omp_get_thread_num()));
+  }
+  EXPECT_EQ(bad, 0);
+}
+
+TEST_P(GemmTest, OneThreadAndTwoThreadsAgree) {
+  // Thread count changes only the partition of the work, never the summation order of an element.
+  std::mt19937 rng(7);
+  StoredMatrix A(200, 300, false, DType::F32, true, rng), B(300, 150, true, DType::F16, false, rng);
+  std::vector<float> c1(200 * 150), c2(200 * 150);
+  const int saved = num_threads();
+  set_num_threads(1);
+  gemm(200, 150, 300, A.operand(), B.operand(), c1.data(), 150);
+  set_num_threads(2);
+  gemm(200, 150, 300, A.operand(), B.operand(), c2.data(), 150);
+  set_num_threads(saved);
+  EXPECT_EQ(c1, c2);
+}
+
+TEST(GemmActTest, ApplyActMatchesDoubleReference) {
+  for (Act act : {Act::None, Act::SiLU, Act::GELU, Act::QuickGELU})
+    for (float x = -12.0f; x <= 12.0f; x += 0.37f) {
+      const double ref = act_ref(act, x);
+      EXPECT_NEAR(apply_act(act, x), ref, 4 * kU * (std::fabs(ref) + std::fabs(x)) + 1e-30) << int(act) << " " << x;
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, GemmTest, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "avx2" : "portable"; });
+
+}  // namespace
+}  // namespace egopd
