@@ -5,6 +5,9 @@ namespace egopd {
 // Runners live beside their components (src/<component>/*_case.cpp).
 // Add one declaration and one table row per component.
 // -- declarations --
+CaseOutputs run_rng_case(const GoldenCase&);
+CaseOutputs run_scheduler_euler_case(const GoldenCase&);
+CaseOutputs run_scheduler_lcm_case(const GoldenCase&);
 // -- end declarations --
 
 namespace {
@@ -15,6 +18,9 @@ struct Entry {
 const Entry kRunners[] = {
     // -- table --
     {"", nullptr},
+    {"rng", run_rng_case},
+    {"scheduler_euler", run_scheduler_euler_case},
+    {"scheduler_lcm", run_scheduler_lcm_case},
     // -- end table --
 };
 }  // namespace
