@@ -6,9 +6,16 @@
 #include <cmath>
 #include <vector>
 
+#include "core/cpu.h"
 #include "core/error.h"
+#include "core/tensor.h"
 
 namespace egopd {
+
+namespace avx2 {  // attention_avx2.cpp
+int64_t attention_tile_workspace(int64_t dh);
+void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
+}  // namespace avx2
 
 namespace {
 
@@ -37,11 +44,30 @@ void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, in
   for (int64_t d = 0; d < dh; ++d) out[d] = acc[d] * inv;
 }
 
+// Blocked AVX2 kernel: units of (batch, head, 64-query tile), each with its own workspace.
+void attention_avx2(const AttentionArgs& a) {
+  constexpr int64_t kTile = 64;
+  const int64_t tiles = (a.lq + kTile - 1) / kTile;
+  const int64_t units = a.batch * a.heads * tiles;
+  const bool par = !omp_in_parallel() && units > 1 && a.lq * a.lk * a.dh * a.batch * a.heads >= (1 << 16);
+#pragma omp parallel if (par)
+  {
+    const std::shared_ptr<float[]> work = alloc_floats(static_cast<size_t>(avx2::attention_tile_workspace(a.dh)));
+#pragma omp for schedule(dynamic, 1)
+    for (int64_t u = 0; u < units; ++u) {
+      const int64_t t = u % tiles, h = (u / tiles) % a.heads, b = u / (tiles * a.heads);
+      const int64_t q0 = t * kTile;
+      avx2::attention_tile(a, b, h, q0, std::min(kTile, a.lq - q0), work.get());
+    }
+  }
+}
+
 }  // namespace
 
 void attention(const AttentionArgs& a) {
   EGOPD_CHECK(a.lq > 0 && a.lk > 0 && a.dh > 0, "attention: empty shape");
   EGOPD_CHECK(!a.causal || a.lq == a.lk, "attention: causal mask needs lq == lk");
+  if (use_avx2()) return attention_avx2(a);
   const int64_t units = a.batch * a.heads * a.lq;
   const bool par = !omp_in_parallel() && units * a.lk * a.dh >= (1 << 16);
 #pragma omp parallel if (par)

@@ -32,6 +32,22 @@ static inline __m256 exp_ps(__m256 x) {
   return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GT_OQ));
 }
 
+// 2^x (same limits as exp_ps): attention folds log2(e) into its query scale and calls this directly.
+static inline __m256 exp2_ps(__m256 x) {
+  static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
+                                 5.000000000e-01f};
+  const __m256 lo_limit = _mm256_set1_ps(-126.0f), hi_limit = _mm256_set1_ps(128.0f);
+  const __m256 xc = _mm256_min_ps(_mm256_max_ps(x, lo_limit), _mm256_set1_ps(127.0f));
+  const __m256 n = _mm256_round_ps(xc, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  const __m256 r = _mm256_mul_ps(_mm256_sub_ps(xc, n), _mm256_set1_ps(0.693147180559945309f));  // x - n exact
+  const __m256 p = horner(r, kPoly, 5);
+  const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(r, r), p, r), _mm256_set1_ps(1.0f));
+  const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  __m256 res = _mm256_mul_ps(y, _mm256_castsi256_ps(e));
+  res = _mm256_andnot_ps(_mm256_cmp_ps(x, lo_limit, _CMP_LT_OQ), res);
+  return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GE_OQ));
+}
+
 // erf(a) and erfc(a) for a = |z| >= 0, each accurate relative to its own value.
 static inline void erf_erfc_abs(__m256 a, __m256* erf_a, __m256* erfc_a) {
   static const float kSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,

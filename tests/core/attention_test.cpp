@@ -1,0 +1,126 @@
+// Attention against a double-precision naive softmax(QK^T scale)V, on the portable and AVX2 paths.
+#include "core/kernels/attention.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <vector>
+
+#include "core/cpu.h"
+
+namespace egopd {
+namespace {
+
+struct PathGuard {
+  explicit PathGuard(bool portable) { set_force_portable(portable); }
+  ~PathGuard() { set_force_portable(false); }
+};
+
+struct Case {
+  int64_t batch, heads, lq, lk, dh;
+  bool causal = false;
+  bool fused = false;   // q, k, v as column slices of one [rows, 3*C] buffer (self-attention only)
+  float amplitude = 1;  // q and k range (v is in [-1, 1]); large values test the max subtraction
+};
+
+// Runs one case on the current path and checks every output against the double reference.
+void check_case(const Case& c, uint32_t seed) {
+  const int64_t C = c.heads * c.dh;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> ud(-c.amplitude, c.amplitude), vd(-1.0f, 1.0f);
+  std::vector<float> qb, kb, vb;
+  AttentionArgs a;
+  a.batch = c.batch, a.heads = c.heads, a.lq = c.lq, a.lk = c.lk, a.dh = c.dh;
+  a.scale = 1.0f / std::sqrt(static_cast<float>(c.dh));
+  a.causal = c.causal;
+  if (c.fused) {  // [batch, rows, 3C]: q | k | v
+    qb.resize(c.batch * c.lq * 3 * C);
+    for (int64_t i = 0; i < static_cast<int64_t>(qb.size()); ++i) qb[i] = (i % (3 * C)) < 2 * C ? ud(rng) : vd(rng);
+    a.q = qb.data(), a.k = qb.data() + C, a.v = qb.data() + 2 * C;
+    a.q_ld = a.k_ld = a.v_ld = 3 * C;
+    a.q_bs = a.k_bs = a.v_bs = c.lq * 3 * C;
+  } else {  // separate buffers, rows padded by 3 floats, batches padded by 5 floats
+    qb.resize(c.batch * (c.lq * (C + 3) + 5)), kb.resize(c.batch * (c.lk * (C + 3) + 5));
+    vb.resize(kb.size());
+    for (auto* buf : {&qb, &kb})
+      for (float& x : *buf) x = ud(rng);
+    for (float& x : vb) x = vd(rng);
+    a.q = qb.data(), a.k = kb.data(), a.v = vb.data();
+    a.q_ld = a.k_ld = a.v_ld = C + 3;
+    a.q_bs = c.lq * (C + 3) + 5;
+    a.k_bs = a.v_bs = c.lk * (C + 3) + 5;
+  }
+  const int64_t out_ld = C + 2;  // the 2 padding floats per row must stay untouched
+  std::vector<float> out(c.batch * c.lq * out_ld, 12345.0f);
+  a.out = out.data(), a.out_ld = out_ld, a.out_bs = c.lq * out_ld;
+  attention(a);
+
+  std::vector<double> s(c.lk);
+  for (int64_t b = 0; b < c.batch; ++b)
+    for (int64_t h = 0; h < c.heads; ++h)
+      for (int64_t i = 0; i < c.lq; ++i) {
+        const float* q = a.q + b * a.q_bs + i * a.q_ld + h * c.dh;
+        const int64_t nk = c.causal ? i + 1 : c.lk;
+        double mx = -INFINITY, smax = 0;
+        for (int64_t j = 0; j < nk; ++j) {
+          const float* k = a.k + b * a.k_bs + j * a.k_ld + h * c.dh;
+          double dot = 0;
+          for (int64_t d = 0; d < c.dh; ++d) dot += static_cast<double>(q[d]) * k[d];
+          s[j] = dot * a.scale;
+          mx = std::max(mx, s[j]);
+          smax = std::max(smax, std::fabs(s[j]));
+        }
+        double sum = 0;
+        for (int64_t j = 0; j < nk; ++j) sum += (s[j] = std::exp(s[j] - mx));
+        for (int64_t d = 0; d < c.dh; ++d) {
+          double ref = 0;
+          for (int64_t j = 0; j < nk; ++j) ref += s[j] * a.v[b * a.v_bs + j * a.v_ld + h * c.dh + d];
+          ref /= sum;
+          const float got = out[b * a.out_bs + i * out_ld + h * c.dh + d];
+          // float32 scores carry ~ulp(|s|) absolute error, which exp turns into relative error of p
+          ASSERT_NEAR(got, ref, 2e-6 + 5e-7 * smax)
+              << "b=" << b << " h=" << h << " i=" << i << " d=" << d;
+        }
+      }
+  for (int64_t r = 0; r < c.batch * c.lq; ++r)
+    for (int64_t p = C; p < out_ld; ++p) ASSERT_EQ(out[r * out_ld + p], 12345.0f) << "padding overwritten";
+}
+
+void check_both_paths(const Case& c) {
+  for (bool portable : {true, false}) {
+    PathGuard guard(portable);
+    SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " batch=" << c.batch << " heads="
+                                    << c.heads << " lq=" << c.lq << " lk=" << c.lk << " dh=" << c.dh
+                                    << (c.causal ? " causal" : "") << (c.fused ? " fused" : ""));
+    check_case(c, 1234u + static_cast<uint32_t>(c.lq * 7 + c.lk * 3 + c.dh));
+  }
+}
+
+TEST(Attention, TinyHeadsOddLengths) { check_both_paths({2, 3, 5, 7, 4}); }
+TEST(Attention, SingleKey) { check_both_paths({2, 2, 3, 1, 8}); }
+TEST(Attention, SingleQuerySingleKey) { check_both_paths({1, 1, 1, 1, 4}); }
+TEST(Attention, CrossAttentionLqNotLk) { check_both_paths({1, 2, 100, 130, 64}); }
+TEST(Attention, TileTailsAndOddHeadDim) { check_both_paths({2, 2, 65, 49, 20}); }
+TEST(Attention, HeadDimNotMultipleOf8) { check_both_paths({1, 3, 17, 23, 12}); }
+TEST(Attention, VisionHeadDim80) { check_both_paths({1, 2, 257, 257, 80}); }
+TEST(Attention, CausalText) { check_both_paths({1, 2, 77, 77, 64, true}); }
+TEST(Attention, CausalAcrossTiles) { check_both_paths({2, 1, 150, 150, 8, true}); }
+TEST(Attention, TemporalSixteenFrames) { check_both_paths({37, 2, 16, 16, 64}); }
+TEST(Attention, OneFrame) { check_both_paths({5, 2, 1, 1, 64}); }
+TEST(Attention, FusedQkvBuffer) { check_both_paths({2, 2, 70, 70, 16, false, true}); }
+TEST(Attention, FusedQkvBufferCausal) { check_both_paths({1, 3, 33, 33, 8, true, true}); }
+TEST(Attention, LargeScoresAreStable) { check_both_paths({1, 2, 40, 90, 16, false, false, 20.0f}); }
+
+TEST(Attention, RejectsCausalWithDifferentLengths) {
+  std::vector<float> buf(64);
+  AttentionArgs a;
+  a.lq = 2, a.lk = 3, a.dh = 4, a.causal = true;
+  a.q = a.k = a.v = buf.data(), a.out = buf.data();
+  a.q_ld = a.k_ld = a.v_ld = a.out_ld = 4;
+  EXPECT_THROW(attention(a), std::exception);
+}
+
+}  // namespace
+}  // namespace egopd
