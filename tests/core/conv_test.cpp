@@ -1,0 +1,230 @@
+// conv2d and conv_temporal3 against double-precision direct loops, on both the portable and the AVX2 path.
+// Tolerance: 2 (K + 3) u sum |w x| (+ bias / residual terms) + 8 u |ref|, u = 2^-24, K = taps summed, times 1.2
+// when an activation follows.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/cpu.h"
+#include "core/dtype.h"
+#include "core/kernels/conv.h"
+
+namespace egopd {
+namespace {
+
+constexpr double kU = 1.0 / 16777216.0;
+
+double act_ref(Act act, double x) {
+  switch (act) {
+    case Act::None: return x;
+    case Act::SiLU: return x / (1.0 + std::exp(-x));
+    case Act::GELU: return 0.5 * x * (1.0 + std::erf(x / std::sqrt(2.0)));
+    case Act::QuickGELU: return x / (1.0 + std::exp(-1.702 * x));
+  }
+  return x;
+}
+
+// Weights stored in a dtype, with their exact values for the reference.
+struct StoredWeight {
+  DType dtype;
+  std::vector<float> f32;
+  std::vector<uint16_t> h16;
+  std::vector<double> value;
+  StoredWeight(size_t n, DType dt, std::mt19937& rng) : dtype(dt), f32(n), h16(n), value(n) {
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    for (size_t i = 0; i < n; ++i) {
+      const float v = u(rng);
+      if (dt == DType::F16) h16[i] = float_to_half(v), value[i] = half_to_float(h16[i]);
+      else if (dt == DType::BF16) h16[i] = float_to_bf16(v), value[i] = bf16_to_float(h16[i]);
+      else f32[i] = v, value[i] = v;
+    }
+  }
+  Operand operand(int64_t ld) const {
+    return Operand{dtype == DType::F32 ? static_cast<const void*>(f32.data()) : h16.data(), dtype, ld, false, nullptr};
+  }
+};
+
+std::vector<float> random_vec(size_t n, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
+
+// Compares y against ref with per-element tolerances; returns the failure count.
+int check(const std::vector<float>& y, const std::vector<double>& ref, const std::vector<double>& tol,
+          const std::string& what) {
+  int bad = 0;
+  for (size_t i = 0; i < y.size(); ++i)
+    if (!(std::fabs(y[i] - ref[i]) <= tol[i])) {
+      if (bad < 3) ADD_FAILURE() << what << " at " << i << ": got " << y[i] << " want " << ref[i] << " tol " << tol[i];
+      ++bad;
+    }
+  return bad;
+}
+
+struct ConvCase {
+  int64_t n, cin, cout, h, w, k, stride, pad;
+  DType dt = DType::F32;
+  bool bias = true;
+  Act act = Act::None;
+  bool accumulate = false;
+};
+
+int run_conv(const ConvCase& c, uint32_t seed) {
+  std::mt19937 rng(seed);
+  const Conv2dGeom g{c.cin, c.cout, c.k, c.k, c.stride, c.stride, c.pad, c.pad};
+  const int64_t oh = g.out_h(c.h), ow = g.out_w(c.w), K = c.cin * c.k * c.k;
+  const std::vector<float> x = random_vec(size_t(c.n * c.cin * c.h * c.w), rng);
+  const StoredWeight wt(size_t(c.cout * K), c.dt, rng);
+  const std::vector<float> bias = random_vec(size_t(c.cout), rng);
+  std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
+  const std::vector<float> y0 = y;
+  conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
+  std::vector<double> ref(y.size()), tol(y.size());
+  for (int64_t f = 0; f < c.n; ++f)
+    for (int64_t o = 0; o < c.cout; ++o)
+      for (int64_t oy = 0; oy < oh; ++oy)
+        for (int64_t ox = 0; ox < ow; ++ox) {
+          double s = c.bias ? bias[size_t(o)] : 0.0, sa = std::fabs(s);
+          for (int64_t ci = 0; ci < c.cin; ++ci)
+            for (int64_t ky = 0; ky < c.k; ++ky)
+              for (int64_t kx = 0; kx < c.k; ++kx) {
+                const int64_t iy = oy * c.stride - c.pad + ky, ix = ox * c.stride - c.pad + kx;
+                if (iy < 0 || iy >= c.h || ix < 0 || ix >= c.w) continue;
+                const double p = wt.value[size_t(((o * c.cin + ci) * c.k + ky) * c.k + kx)] *
+                                 x[size_t(((f * c.cin + ci) * c.h + iy) * c.w + ix)];
+                s += p;
+                sa += std::fabs(p);
+              }
+          const size_t idx = size_t(((f * c.cout + o) * oh + oy) * ow + ox);
+          double r = act_ref(c.act, s);
+          double t = (c.act == Act::None ? 1.0 : 1.2) * 2.0 * double(K + 3) * kU * sa + 8 * kU * std::fabs(r);
+          if (c.accumulate) {
+            r += y0[idx];
+            t += 4 * kU * (std::fabs(y0[idx]) + std::fabs(r));
+          }
+          ref[idx] = r;
+          tol[idx] = t + 1e-30;
+        }
+  return check(y, ref, tol,
+               "conv " + std::to_string(c.k) + "x" + std::to_string(c.k) + "/" + std::to_string(c.stride) + " n" +
+                   std::to_string(c.n) + " " + std::to_string(c.cin) + "->" + std::to_string(c.cout) + " " +
+                   std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt));
+}
+
+struct TemporalCase {
+  int64_t b, f, cin, cout, hw;
+  DType dt = DType::F32;
+  Act act = Act::None;
+  bool accumulate = false;
+};
+
+int run_temporal(const TemporalCase& c, uint32_t seed) {
+  std::mt19937 rng(seed);
+  const std::vector<float> x = random_vec(size_t(c.b * c.f * c.cin * c.hw), rng);
+  const StoredWeight wt(size_t(c.cout * c.cin * 3), c.dt, rng);  // [cout, cin, 3, 1, 1]
+  const std::vector<float> bias = random_vec(size_t(c.cout), rng);
+  std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
+  const std::vector<float> y0 = y;
+  conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
+                 c.accumulate);
+  std::vector<double> ref(y.size()), tol(y.size());
+  for (int64_t bi = 0; bi < c.b; ++bi)
+    for (int64_t t = 0; t < c.f; ++t)
+      for (int64_t o = 0; o < c.cout; ++o)
+        for (int64_t p = 0; p < c.hw; ++p) {
+          double s = bias[size_t(o)], sa = std::fabs(s);
+          for (int64_t ci = 0; ci < c.cin; ++ci)
+            for (int64_t k = 0; k < 3; ++k) {
+              const int64_t ts = t + k - 1;
+              if (ts < 0 || ts >= c.f) continue;
+              const double v =
+                  wt.value[size_t((o * c.cin + ci) * 3 + k)] * x[size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)];
+              s += v;
+              sa += std::fabs(v);
+            }
+          const size_t idx = size_t(((bi * c.f + t) * c.cout + o) * c.hw + p);
+          double r = act_ref(c.act, s);
+          double tl = (c.act == Act::None ? 1.0 : 1.2) * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
+          if (c.accumulate) {
+            r += y0[idx];
+            tl += 4 * kU * (std::fabs(y0[idx]) + std::fabs(r));
+          }
+          ref[idx] = r;
+          tol[idx] = tl + 1e-30;
+        }
+  return check(y, ref, tol,
+               "temporal b" + std::to_string(c.b) + " f" + std::to_string(c.f) + " " + std::to_string(c.cin) + "->" +
+                   std::to_string(c.cout) + " hw" + std::to_string(c.hw) + " " + dtype_name(c.dt));
+}
+
+class ConvTest : public ::testing::TestWithParam<bool> {
+ protected:
+  void SetUp() override {
+    if (GetParam() && !cpu_has_avx2_fma_f16c()) GTEST_SKIP() << "no AVX2/FMA/F16C on this CPU";
+    set_force_portable(!GetParam());
+  }
+  void TearDown() override { set_force_portable(false); }
+};
+
+TEST_P(ConvTest, Pointwise1x1) {
+  EXPECT_EQ(run_conv({2, 5, 7, 3, 5, 1, 1, 0}, 1), 0);
+  EXPECT_EQ(run_conv({1, 33, 20, 4, 8, 1, 1, 0}, 2), 0);  // hw = 32: full panels
+  EXPECT_EQ(run_conv({3, 16, 6, 1, 1, 1, 1, 0}, 3), 0);   // 1x1 image
+}
+
+TEST_P(ConvTest, Same3x3) {
+  EXPECT_EQ(run_conv({1, 3, 17, 7, 9, 3, 1, 1}, 10), 0);   // odd H/W, 1 frame
+  EXPECT_EQ(run_conv({3, 16, 8, 5, 33, 3, 1, 1}, 11), 0);  // panels straddle rows, W > 16
+  EXPECT_EQ(run_conv({2, 8, 6, 32, 32, 3, 1, 1}, 12), 0);  // panels inside rows
+  EXPECT_EQ(run_conv({2, 50, 13, 6, 6, 3, 1, 1}, 13), 0);  // K = 450: several K passes
+  EXPECT_EQ(run_conv({1, 4, 4, 1, 1, 3, 1, 1}, 14), 0);    // 1x1 image: only the centre tap
+  EXPECT_EQ(run_conv({2, 4, 5, 2, 3, 3, 1, 1}, 15), 0);
+}
+
+TEST_P(ConvTest, Strided3x3) {
+  EXPECT_EQ(run_conv({1, 4, 5, 9, 11, 3, 2, 1}, 20), 0);
+  EXPECT_EQ(run_conv({3, 7, 9, 8, 8, 3, 2, 1}, 21), 0);
+  EXPECT_EQ(run_conv({2, 3, 4, 7, 7, 3, 1, 0}, 22), 0);  // valid padding: ow != w, general path
+}
+
+TEST_P(ConvTest, PatchEmbedding14x14) {
+  EXPECT_EQ(run_conv({1, 3, 10, 28, 28, 14, 14, 0, DType::F32, false}, 30), 0);
+  EXPECT_EQ(run_conv({2, 3, 17, 42, 28, 14, 14, 0, DType::F16, false}, 31), 0);
+}
+
+TEST_P(ConvTest, WeightDtypesAndEpilogues) {
+  uint32_t seed = 40;
+  for (DType dt : {DType::F32, DType::F16, DType::BF16})
+    for (Act act : {Act::None, Act::SiLU, Act::GELU})
+      for (bool acc : {false, true}) {
+        ConvCase c{2, 6, 11, 5, 7, 3, 1, 1, dt, true, act, acc};
+        EXPECT_EQ(run_conv(c, seed++), 0);
+        ConvCase big_k{1, 45, 7, 4, 4, 3, 1, 1, dt, true, act, acc};  // K = 405 > one K block
+        EXPECT_EQ(run_conv(big_k, seed++), 0);
+      }
+}
+
+TEST_P(ConvTest, Temporal) {
+  uint32_t seed = 60;
+  for (int64_t f : {1, 2, 5})
+    for (int64_t hw : {7, 16, 37}) {
+      EXPECT_EQ(run_temporal({2, f, 6, 5, hw}, seed++), 0);
+      EXPECT_EQ(run_temporal({2, f, 9, 13, hw, DType::F16}, seed++), 0);
+    }
+  EXPECT_EQ(run_temporal({1, 4, 150, 8, 20, DType::BF16}, seed++), 0);  // K = 450: taps split across K blocks
+  EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({2, 3, 140, 7, 9, DType::F16, Act::GELU, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "avx2" : "portable"; });
+
+}  // namespace
+}  // namespace egopd
