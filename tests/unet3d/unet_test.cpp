@@ -1,0 +1,119 @@
+// U-Net: golden cases through the model directly (independent of the other components), load-time checks,
+// and the PIFR zero-initialisation identity.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "core/error.h"
+#include "core/golden.h"
+#include "core/threading.h"
+#include "unet3d/unet.h"
+
+namespace egopd {
+CaseOutputs run_unet_case(const GoldenCase&);
+namespace {
+
+std::string golden(const std::string& name) { return std::string(EGOPD_TEST_DATA) + "/data/golden/" + name; }
+
+void expect_case_passes(const std::string& name) {
+  GoldenCase c = load_golden_case(golden(name));
+  for (int threads : {1, 2}) {
+    set_num_threads(threads);
+    CaseOutputs out = run_unet_case(c);
+    for (const auto& r : compare_case_outputs(c, out))
+      EXPECT_TRUE(r.ok) << name << " @" << threads << " threads: " << r.name << " max_abs " << r.max_abs << " (tol "
+                        << r.tol_max_abs << ") rel_l2 " << r.rel_l2 << " (tol " << r.tol_rel_l2 << ") " << r.message;
+  }
+  set_num_threads(0);
+}
+
+TEST(UNetGolden, StockSvdUNet) { expect_case_passes("unet"); }
+TEST(UNetGolden, PifrRandom) { expect_case_passes("unet_pifr_random"); }
+TEST(UNetGolden, PifrZeroInit) { expect_case_passes("unet_pifr_zero_init"); }
+
+// Zero-initialised PIFR reproduces the U-Net without text bit for bit, whatever the text (egopressurediff §6.4).
+TEST(UNetPifr, ZeroInitIgnoresText) {
+  GoldenCase c = load_golden_case(golden("unet_pifr_zero_init"));
+  UNetSpatioTemporal unet(c.model_dir());
+  const Tensor& text = c.input("text_tokens");
+  Tensor other = text.clone();
+  for (int64_t i = 0; i < other.numel(); ++i) other[i] = 3.0f * other[i] - 0.5f;
+  auto run = [&](const Tensor* t) {
+    UNetConditioning cond = unet.prepare(c.input("encoder_hidden_states"), t);
+    return unet.forward(c.input("sample"), c.input("timestep")[0], c.input("added_time_ids"), cond);
+  };
+  Tensor a = run(&text), b = run(&other), none = run(nullptr);
+  for (int64_t i = 0; i < a.numel(); ++i) {
+    ASSERT_EQ(a[i], b[i]) << i;
+    ASSERT_EQ(a[i], none[i]) << i;
+  }
+}
+
+// Random PIFR: the text changes the output (the text path is live).
+TEST(UNetPifr, RandomPifrDependsOnText) {
+  GoldenCase c = load_golden_case(golden("unet_pifr_random"));
+  UNetSpatioTemporal unet(c.model_dir());
+  UNetConditioning with = unet.prepare(c.input("encoder_hidden_states"), &c.input("text_tokens"));
+  UNetConditioning without = unet.prepare(c.input("encoder_hidden_states"), nullptr);
+  Tensor a = unet.forward(c.input("sample"), c.input("timestep")[0], c.input("added_time_ids"), with);
+  Tensor b = unet.forward(c.input("sample"), c.input("timestep")[0], c.input("added_time_ids"), without);
+  double diff = 0;
+  for (int64_t i = 0; i < a.numel(); ++i) diff = std::max(diff, double(std::fabs(a[i] - b[i])));
+  EXPECT_GT(diff, 1e-3);
+}
+
+TEST(UNetLoad, WrongChannelCountNamesTheTensor) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetConfig cfg = UNetConfig::load(c.model_dir());
+  cfg.block_out_channels = {64, 64};
+  auto w = std::make_shared<WeightMap>(WeightMap::load_dir(c.model_dir(), "diffusion_pytorch_model", "unet"));
+  try {
+    UNetSpatioTemporal unet(cfg, w);
+    FAIL() << "expected a shape error";
+  } catch (const Error& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("conv_in.weight"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("[64,8,3,3]"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("[32,8,3,3]"), std::string::npos) << msg;
+  }
+}
+
+TEST(UNetLoad, PifrKeysMissingIsAnError) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetConfig cfg = UNetConfig::load(c.model_dir());
+  cfg.pifr_enabled = true;
+  cfg.pifr_text_dim = 16;
+  auto w = std::make_shared<WeightMap>(WeightMap::load_dir(c.model_dir(), "diffusion_pytorch_model", "unet"));
+  try {
+    UNetSpatioTemporal unet(cfg, w);
+    FAIL() << "expected a missing-tensor error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("pifr.attn_text.to_q.weight"), std::string::npos) << e.what();
+  }
+}
+
+TEST(UNetLoad, PifrDisabledIgnoresPifrKeys) {
+  GoldenCase c = load_golden_case(golden("unet_pifr_zero_init"));
+  UNetConfig cfg = UNetConfig::load(c.model_dir());
+  cfg.pifr_enabled = false;
+  cfg.pifr_text_dim = 0;
+  auto w = std::make_shared<WeightMap>(WeightMap::load_dir(c.model_dir(), "diffusion_pytorch_model", "unet"));
+  UNetSpatioTemporal unet(cfg, w);  // no throw
+  // zero-init PIFR == stock: the expected output still matches
+  UNetConditioning cond = unet.prepare(c.input("encoder_hidden_states"), nullptr);
+  CaseOutputs out;
+  out.tensors["sample"] = unet.forward(c.input("sample"), c.input("timestep")[0], c.input("added_time_ids"), cond);
+  for (const auto& r : compare_case_outputs(c, out)) EXPECT_TRUE(r.ok) << r.max_abs << " " << r.rel_l2;
+}
+
+TEST(UNetForward, RejectsLatentNotDivisibleByDownsampling) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetSpatioTemporal unet(c.model_dir());
+  UNetConditioning cond = unet.prepare(c.input("encoder_hidden_states"), nullptr);
+  Tensor s = Tensor::zeros({1, 2, 8, 7, 8});
+  EXPECT_THROW(unet.forward(s, 1.0f, c.input("added_time_ids"), cond), Error);
+}
+
+}  // namespace
+}  // namespace egopd
