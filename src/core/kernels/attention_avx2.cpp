@@ -27,36 +27,104 @@ static inline int64_t round_up8(int64_t n) { return (n + 7) / 8 * 8; }
 static inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 
 // S^T[r][0..15] = sum_d K[r][d] * Qt[d][0..15] for R key rows; qt points at Qt[0][i0] (stride kBQ).
+// Tail blocks (R < 6). The accumulators start from memory: GCC keeps a zero-initialised array in memory.
 template <int R>
 static inline void score_block(const float* qt, int64_t dh, const float* k, int64_t k_ld, float* st) {
-  __m256 acc0[R], acc1[R];
-  for (int r = 0; r < R; ++r) acc0[r] = acc1[r] = _mm256_setzero_ps();
+  for (int r = 0; r < R; ++r)
+    for (int c = 0; c < 16; ++c) st[r * kBQ + c] = 0.0f;
+  __m256 acc[R][2];
+  for (int r = 0; r < R; ++r)
+    for (int c = 0; c < 2; ++c) acc[r][c] = _mm256_loadu_ps(st + r * kBQ + c * 8);
   for (int64_t d = 0; d < dh; ++d) {
     const __m256 q0 = _mm256_loadu_ps(qt + d * kBQ), q1 = _mm256_loadu_ps(qt + d * kBQ + 8);
     for (int r = 0; r < R; ++r) {
       const __m256 kb = _mm256_broadcast_ss(k + r * k_ld + d);
-      acc0[r] = _mm256_fmadd_ps(kb, q0, acc0[r]);
-      acc1[r] = _mm256_fmadd_ps(kb, q1, acc1[r]);
+      acc[r][0] = _mm256_fmadd_ps(kb, q0, acc[r][0]);
+      acc[r][1] = _mm256_fmadd_ps(kb, q1, acc[r][1]);
     }
   }
-  for (int r = 0; r < R; ++r) {
-    _mm256_storeu_ps(st + r * kBQ, acc0[r]);
-    _mm256_storeu_ps(st + r * kBQ + 8, acc1[r]);
+  for (int r = 0; r < R; ++r)
+    for (int c = 0; c < 2; ++c) _mm256_storeu_ps(st + r * kBQ + c * 8, acc[r][c]);
+}
+
+// The full 6-row block, with named accumulators.
+static inline void score_block6(const float* qt, int64_t dh, const float* k, int64_t k_ld, float* st) {
+  const float *k0 = k, *k1 = k + k_ld, *k2 = k + 2 * k_ld, *k3 = k + 3 * k_ld, *k4 = k + 4 * k_ld, *k5 = k + 5 * k_ld;
+  __m256 a00 = _mm256_setzero_ps(), a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00;
+  __m256 a30 = a00, a31 = a00, a40 = a00, a41 = a00, a50 = a00, a51 = a00;
+  for (int64_t d = 0; d < dh; ++d) {
+    const __m256 q0 = _mm256_loadu_ps(qt + d * kBQ), q1 = _mm256_loadu_ps(qt + d * kBQ + 8);
+    __m256 kb = _mm256_broadcast_ss(k0 + d);
+    a00 = _mm256_fmadd_ps(kb, q0, a00), a01 = _mm256_fmadd_ps(kb, q1, a01);
+    kb = _mm256_broadcast_ss(k1 + d);
+    a10 = _mm256_fmadd_ps(kb, q0, a10), a11 = _mm256_fmadd_ps(kb, q1, a11);
+    kb = _mm256_broadcast_ss(k2 + d);
+    a20 = _mm256_fmadd_ps(kb, q0, a20), a21 = _mm256_fmadd_ps(kb, q1, a21);
+    kb = _mm256_broadcast_ss(k3 + d);
+    a30 = _mm256_fmadd_ps(kb, q0, a30), a31 = _mm256_fmadd_ps(kb, q1, a31);
+    kb = _mm256_broadcast_ss(k4 + d);
+    a40 = _mm256_fmadd_ps(kb, q0, a40), a41 = _mm256_fmadd_ps(kb, q1, a41);
+    kb = _mm256_broadcast_ss(k5 + d);
+    a50 = _mm256_fmadd_ps(kb, q0, a50), a51 = _mm256_fmadd_ps(kb, q1, a51);
   }
+  _mm256_storeu_ps(st, a00), _mm256_storeu_ps(st + 8, a01);
+  _mm256_storeu_ps(st + kBQ, a10), _mm256_storeu_ps(st + kBQ + 8, a11);
+  _mm256_storeu_ps(st + 2 * kBQ, a20), _mm256_storeu_ps(st + 2 * kBQ + 8, a21);
+  _mm256_storeu_ps(st + 3 * kBQ, a30), _mm256_storeu_ps(st + 3 * kBQ + 8, a31);
+  _mm256_storeu_ps(st + 4 * kBQ, a40), _mm256_storeu_ps(st + 4 * kBQ + 8, a41);
+  _mm256_storeu_ps(st + 5 * kBQ, a50), _mm256_storeu_ps(st + 5 * kBQ + 8, a51);
 }
 
 static void score_rows(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t rows, float* st) {
   int64_t r = 0;
-  for (; r + kMR <= rows; r += kMR) score_block<kMR>(qt, dh, k + r * k_ld, k_ld, st + r * kBQ);
+  for (; r + kMR <= rows; r += kMR) score_block6(qt, dh, k + r * k_ld, k_ld, st + r * kBQ);
   const float* kr = k + r * k_ld;
   float* sr = st + r * kBQ;
   switch (rows - r) {
-    case 5: score_block<5>(qt, dh, kr, k_ld, sr); break;
+    case 5:  // 4 + 1: GCC spills the accumulators of a 5-row block
+      score_block<4>(qt, dh, kr, k_ld, sr);
+      score_block<1>(qt, dh, kr + 4 * k_ld, k_ld, sr + 4 * kBQ);
+      break;
     case 4: score_block<4>(qt, dh, kr, k_ld, sr); break;
     case 3: score_block<3>(qt, dh, kr, k_ld, sr); break;
     case 2: score_block<2>(qt, dh, kr, k_ld, sr); break;
     case 1: score_block<1>(qt, dh, kr, k_ld, sr); break;
     default: break;
+  }
+}
+
+// dst[d][i] = c * src[i][d] for an 8x8 block (src rows at stride ld, dst rows at stride kBQ).
+static inline void transpose8_scaled(const float* src, int64_t ld, __m256 c, float* dst) {
+  __m256 r0 = _mm256_loadu_ps(src), r1 = _mm256_loadu_ps(src + ld), r2 = _mm256_loadu_ps(src + 2 * ld),
+         r3 = _mm256_loadu_ps(src + 3 * ld), r4 = _mm256_loadu_ps(src + 4 * ld), r5 = _mm256_loadu_ps(src + 5 * ld),
+         r6 = _mm256_loadu_ps(src + 6 * ld), r7 = _mm256_loadu_ps(src + 7 * ld);
+  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1), t2 = _mm256_unpacklo_ps(r2, r3),
+               t3 = _mm256_unpackhi_ps(r2, r3), t4 = _mm256_unpacklo_ps(r4, r5), t5 = _mm256_unpackhi_ps(r4, r5),
+               t6 = _mm256_unpacklo_ps(r6, r7), t7 = _mm256_unpackhi_ps(r6, r7);
+  const __m256 u0 = _mm256_shuffle_ps(t0, t2, 0x44), u1 = _mm256_shuffle_ps(t0, t2, 0xEE),
+               u2 = _mm256_shuffle_ps(t1, t3, 0x44), u3 = _mm256_shuffle_ps(t1, t3, 0xEE),
+               u4 = _mm256_shuffle_ps(t4, t6, 0x44), u5 = _mm256_shuffle_ps(t4, t6, 0xEE),
+               u6 = _mm256_shuffle_ps(t5, t7, 0x44), u7 = _mm256_shuffle_ps(t5, t7, 0xEE);
+  r0 = _mm256_permute2f128_ps(u0, u4, 0x20), r1 = _mm256_permute2f128_ps(u1, u5, 0x20);
+  r2 = _mm256_permute2f128_ps(u2, u6, 0x20), r3 = _mm256_permute2f128_ps(u3, u7, 0x20);
+  r4 = _mm256_permute2f128_ps(u0, u4, 0x31), r5 = _mm256_permute2f128_ps(u1, u5, 0x31);
+  r6 = _mm256_permute2f128_ps(u2, u6, 0x31), r7 = _mm256_permute2f128_ps(u3, u7, 0x31);
+  _mm256_storeu_ps(dst, _mm256_mul_ps(r0, c)), _mm256_storeu_ps(dst + kBQ, _mm256_mul_ps(r1, c));
+  _mm256_storeu_ps(dst + 2 * kBQ, _mm256_mul_ps(r2, c)), _mm256_storeu_ps(dst + 3 * kBQ, _mm256_mul_ps(r3, c));
+  _mm256_storeu_ps(dst + 4 * kBQ, _mm256_mul_ps(r4, c)), _mm256_storeu_ps(dst + 5 * kBQ, _mm256_mul_ps(r5, c));
+  _mm256_storeu_ps(dst + 6 * kBQ, _mm256_mul_ps(r6, c)), _mm256_storeu_ps(dst + 7 * kBQ, _mm256_mul_ps(r7, c));
+}
+
+// Qt[d][i] = c * q[i][d] for i < nq (zero for nq <= i < ncol): [nq, dh] (stride q_ld) -> [dh, kBQ].
+static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
+  const int64_t nq8 = nq / 8 * 8, dh8 = dh / 8 * 8;
+  const __m256 vc = _mm256_set1_ps(c);
+  for (int64_t i = 0; i < nq8; i += 8)
+    for (int64_t d = 0; d < dh8; d += 8) transpose8_scaled(q + i * q_ld + d, q_ld, vc, qt + d * kBQ + i);
+  for (int64_t d = 0; d < dh; ++d) {
+    float* row = qt + d * kBQ;
+    for (int64_t i = d < dh8 ? nq8 : 0; i < nq; ++i) row[i] = q[i * q_ld + d] * c;
+    for (int64_t i = nq; i < ncol; ++i) row[i] = 0.0f;
   }
 }
 
@@ -130,14 +198,9 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
   const float* k = a.k + b * a.k_bs + h * dh;
   const float* v = a.v + b * a.v_bs + h * dh;
   const int64_t ncol = (nq + 15) / 16 * 16;  // query columns computed (multiple of 16)
-  // [nq, dh] (stride q_ld) -> [dh, kBQ], scaled
-  for (int64_t d = 0; d < dh; ++d) {
-    float* row = qt + d * kBQ;
-    for (int64_t i = 0; i < nq; ++i) row[i] = q[i * a.q_ld + d] * c;
-    for (int64_t i = nq; i < kBQ; ++i) row[i] = 0.0f;
-  }
-  for (int64_t i = 0; i < kBQ * dhp; ++i) o[i] = 0.0f;
-  for (int64_t i = 0; i < kBQ; ++i) m[i] = -__builtin_inff(), l[i] = 0.0f;
+  pack_queries(q, a.q_ld, nq, ncol, dh, c, qt);
+  for (int64_t i = 0; i < nq * dhp; ++i) o[i] = 0.0f;
+  for (int64_t i = 0; i < ncol; ++i) m[i] = -__builtin_inff(), l[i] = 0.0f;
 
   const int64_t kend = a.causal ? min64(a.lk, q0 + nq) : a.lk;
   for (int64_t k0 = 0; k0 < kend; k0 += kBK) {
