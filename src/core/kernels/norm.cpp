@@ -4,34 +4,68 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
+
+#include "core/cpu.h"
 
 namespace egopd {
 
+namespace avx2 {  // norm_avx2.cpp
+void shifted_sums(const float* x, int64_t n, double shift, double* sum, double* sumsq);
+void affine_span(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);
+void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps);
+void softmax_row(float* x, int64_t n);
+}  // namespace avx2
+
 namespace {
+
+constexpr int64_t kParallelMin = 1 << 15;  // below this many elements threads cost more than they save
+bool run_parallel(int64_t units, int64_t n) { return units > 1 && n >= kParallelMin && !omp_in_parallel(); }
 
 float silu_scalar(float v) { return v / (1.0f + std::exp(-v)); }
 
-// Statistics of one (batch, group): frames x cg x s values; frame stride is c*s. Two passes in double.
-void group_stats(const float* x, int64_t frames, int64_t frame_stride, int64_t count, float eps, float* mean_out,
-                 float* rstd_out) {
+void shifted_sums_portable(const float* x, int64_t n, double shift, double* sum, double* sumsq) {
+  double s = 0.0, q = 0.0;
+  for (int64_t i = 0; i < n; ++i) {
+    const double d = static_cast<double>(x[i]) - shift;
+    s += d, q += d * d;
+  }
+  *sum += s, *sumsq += q;
+}
+
+void affine_span_portable(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu) {
+  for (int64_t i = 0; i < n; ++i) {
+    const float v = (x[i] - mean) * scale + shift;
+    y[i] = silu ? silu_scalar(v) : v;
+  }
+}
+
+void layer_norm_row_portable(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps) {
   double sum = 0.0;
-  for (int64_t f = 0; f < frames; ++f) {
-    const float* p = x + f * frame_stride;
-    for (int64_t i = 0; i < count; ++i) sum += p[i];
-  }
-  const double n = static_cast<double>(frames * count);
-  const double mean = sum / n;
+  for (int64_t i = 0; i < c; ++i) sum += x[i];
+  const double mean = sum / static_cast<double>(c);
   double sq = 0.0;
-  for (int64_t f = 0; f < frames; ++f) {
-    const float* p = x + f * frame_stride;
-    for (int64_t i = 0; i < count; ++i) {
-      const double d = p[i] - mean;
-      sq += d * d;
-    }
+  for (int64_t i = 0; i < c; ++i) {
+    const double d = x[i] - mean;
+    sq += d * d;
   }
-  *mean_out = static_cast<float>(mean);
-  *rstd_out = static_cast<float>(1.0 / std::sqrt(sq / n + static_cast<double>(eps)));
+  const float rstd = static_cast<float>(1.0 / std::sqrt(sq / static_cast<double>(c) + static_cast<double>(eps)));
+  const float m = static_cast<float>(mean);
+  for (int64_t i = 0; i < c; ++i) {
+    const float v = (x[i] - m) * rstd;
+    y[i] = v * (gamma ? gamma[i] : 1.0f) + (beta ? beta[i] : 0.0f);
+  }
+}
+
+void softmax_row_portable(float* p, int64_t cols) {
+  float mx = -INFINITY;
+  for (int64_t i = 0; i < cols; ++i) mx = std::max(mx, p[i]);
+  double sum = 0.0;
+  for (int64_t i = 0; i < cols; ++i) {
+    p[i] = std::exp(p[i] - mx);
+    sum += p[i];
+  }
+  const float inv = static_cast<float>(1.0 / sum);
+  for (int64_t i = 0; i < cols; ++i) p[i] *= inv;
 }
 
 }  // namespace
@@ -40,67 +74,44 @@ void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t
                 const float* gamma, const float* beta, float eps, bool silu) {
   const int64_t cg = c / groups;
   const int64_t units = batch * groups;
-  const bool par = !omp_in_parallel() && units > 1 && batch * frames * c * s >= (1 << 15);
-#pragma omp parallel for schedule(dynamic, 1) if (par)
+  const bool vec = use_avx2();
+  const auto sums = vec ? avx2::shifted_sums : shifted_sums_portable;
+  const auto affine = vec ? avx2::affine_span : affine_span_portable;
+#pragma omp parallel for schedule(dynamic, 1) if (run_parallel(units, batch * frames * c * s))
   for (int64_t u = 0; u < units; ++u) {
     const int64_t b = u / groups, g = u % groups;
-    const int64_t base = b * frames * c * s + g * cg * s;
-    float mean, rstd;
-    group_stats(x + base, frames, c * s, cg * s, eps, &mean, &rstd);
-    for (int64_t f = 0; f < frames; ++f) {
-      for (int64_t ci = 0; ci < cg; ++ci) {
-        const int64_t ch = g * cg + ci;
-        const float sc = rstd * (gamma ? gamma[ch] : 1.0f);
-        const float sh = (beta ? beta[ch] : 0.0f) - mean * sc;
-        const float* xp = x + base + f * c * s + ci * s;
-        float* yp = y + base + f * c * s + ci * s;
-        for (int64_t i = 0; i < s; ++i) {
-          const float v = xp[i] * sc + sh;
-          yp[i] = silu ? silu_scalar(v) : v;
-        }
-      }
+    const float* xg = x + b * frames * c * s + g * cg * s;  // group g of frame 0; frames are c*s apart
+    float* yg = y + b * frames * c * s + g * cg * s;
+    // Statistics over frames x cg x s values in double, shifted by the first value against cancellation.
+    const double shift = xg[0];
+    double sum = 0.0, sumsq = 0.0;
+    for (int64_t f = 0; f < frames; ++f) sums(xg + f * c * s, cg * s, shift, &sum, &sumsq);
+    const double n = static_cast<double>(frames * cg * s);
+    const double mean_shifted = sum / n;
+    const double var = std::max(0.0, sumsq / n - mean_shifted * mean_shifted);  // biased variance
+    const double mean = shift + mean_shifted;
+    const float mean_f = static_cast<float>(mean);
+    const double rstd = 1.0 / std::sqrt(var + static_cast<double>(eps));
+    for (int64_t ci = 0; ci < cg; ++ci) {
+      const int64_t ch = g * cg + ci;
+      const float scale = static_cast<float>(rstd * (gamma ? gamma[ch] : 1.0f));
+      const float shift_out = beta ? beta[ch] : 0.0f;
+      for (int64_t f = 0; f < frames; ++f)
+        affine(xg + f * c * s + ci * s, yg + f * c * s + ci * s, s, mean_f, scale, shift_out, silu);
     }
   }
 }
 
 void layer_norm(const float* x, float* y, int64_t rows, int64_t c, const float* gamma, const float* beta, float eps) {
-  const bool par = !omp_in_parallel() && rows > 1 && rows * c >= (1 << 15);
-#pragma omp parallel for schedule(static) if (par)
-  for (int64_t r = 0; r < rows; ++r) {
-    const float* xp = x + r * c;
-    float* yp = y + r * c;
-    double sum = 0.0;
-    for (int64_t i = 0; i < c; ++i) sum += xp[i];
-    const double mean = sum / static_cast<double>(c);
-    double sq = 0.0;
-    for (int64_t i = 0; i < c; ++i) {
-      const double d = xp[i] - mean;
-      sq += d * d;
-    }
-    const float rstd = static_cast<float>(1.0 / std::sqrt(sq / static_cast<double>(c) + static_cast<double>(eps)));
-    const float m = static_cast<float>(mean);
-    for (int64_t i = 0; i < c; ++i) {
-      const float v = (xp[i] - m) * rstd;
-      yp[i] = v * (gamma ? gamma[i] : 1.0f) + (beta ? beta[i] : 0.0f);
-    }
-  }
+  const auto row_fn = use_avx2() ? avx2::layer_norm_row : layer_norm_row_portable;
+#pragma omp parallel for schedule(static) if (run_parallel(rows, rows * c))
+  for (int64_t r = 0; r < rows; ++r) row_fn(x + r * c, y + r * c, c, gamma, beta, eps);
 }
 
 void softmax_rows(float* x, int64_t rows, int64_t cols) {
-  const bool par = !omp_in_parallel() && rows > 1 && rows * cols >= (1 << 15);
-#pragma omp parallel for schedule(static) if (par)
-  for (int64_t r = 0; r < rows; ++r) {
-    float* p = x + r * cols;
-    float mx = -INFINITY;
-    for (int64_t i = 0; i < cols; ++i) mx = std::max(mx, p[i]);
-    double sum = 0.0;
-    for (int64_t i = 0; i < cols; ++i) {
-      p[i] = std::exp(p[i] - mx);
-      sum += p[i];
-    }
-    const float inv = static_cast<float>(1.0 / sum);
-    for (int64_t i = 0; i < cols; ++i) p[i] *= inv;
-  }
+  const auto row_fn = use_avx2() ? avx2::softmax_row : softmax_row_portable;
+#pragma omp parallel for schedule(static) if (run_parallel(rows, rows * cols))
+  for (int64_t r = 0; r < rows; ++r) row_fn(x + r * cols, cols);
 }
 
 }  // namespace egopd
