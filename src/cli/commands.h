@@ -4,6 +4,7 @@
 #include <string>
 
 #include "cli/args.h"
+#include "core/dtype.h"
 
 namespace egopd {
 
@@ -12,6 +13,9 @@ int cmd_forward(const Args& a);
 // bench targets
 int bench_gemm(const Args& a);
 int bench_conv2d(const Args& a);
+int bench_unet(const Args& a);
+// f32 | f16 | bf16 -> DType (error naming the option otherwise)
+DType parse_weight_dtype(const std::string& s, const std::string& option);
 
 // Shared reporting of every bench target: one JSON object (--json) or a short text block with at least
 // seconds (median per call), gflops, percent_of_peak and peak_rss_bytes.

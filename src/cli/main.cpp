@@ -26,6 +26,8 @@ struct BenchTarget {
 };
 
 const BenchTarget kBenchTargets[] = {
+    {"unet", bench_unet,
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--pifr] [--weights DIR]"},
     {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
     {"conv2d", bench_conv2d,
      "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]"},

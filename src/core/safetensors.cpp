@@ -181,61 +181,95 @@ TensorToWrite to_write(const std::string& name, const IdTensor& t) {
   return w;
 }
 
-void write_safetensors(const std::string& path, const std::vector<TensorToWrite>& tensors,
-                       const std::map<std::string, std::string>& metadata) {
+std::vector<uint8_t> safetensors_header(
+    const std::vector<std::pair<std::string, std::pair<DType, std::vector<int64_t>>>>& tensors,
+    const std::map<std::string, std::string>& metadata) {
   nlohmann::ordered_json header = nlohmann::ordered_json::object();
   if (!metadata.empty()) header["__metadata__"] = metadata;
   size_t off = 0;
+  for (const auto& [name, spec] : tensors) {
+    int64_t numel = 1;
+    for (int64_t d : spec.second) numel *= d;
+    const size_t bytes = size_t(numel) * dtype_size(spec.first);
+    if (header.contains(name)) throw Error("duplicate tensor name " + name);
+    header[name] = {{"dtype", dtype_name(spec.first)}, {"shape", spec.second}, {"data_offsets", {off, off + bytes}}};
+    off += bytes;
+  }
+  std::string h = header.dump();
+  while ((8 + h.size()) % 8) h.push_back(' ');
+  std::vector<uint8_t> out(8 + h.size());
+  const uint64_t n = h.size();
+  for (int i = 0; i < 8; ++i) out[size_t(i)] = uint8_t(n >> (8 * i));
+  std::memcpy(out.data() + 8, h.data(), h.size());
+  return out;
+}
+
+void write_safetensors(const std::string& path, const std::vector<TensorToWrite>& tensors,
+                       const std::map<std::string, std::string>& metadata) {
+  std::vector<std::pair<std::string, std::pair<DType, std::vector<int64_t>>>> specs;
   for (const auto& t : tensors) {
     int64_t numel = 1;
     for (int64_t d : t.shape) numel *= d;
     if (size_t(numel) * dtype_size(t.dtype) != t.bytes.size())
       throw Error(path + ": tensor " + t.name + ": byte count does not match its shape");
-    if (header.contains(t.name)) throw Error(path + ": duplicate tensor name " + t.name);
-    header[t.name] = {{"dtype", dtype_name(t.dtype)}, {"shape", t.shape}, {"data_offsets", {off, off + t.bytes.size()}}};
-    off += t.bytes.size();
+    specs.push_back({t.name, {t.dtype, t.shape}});
   }
-  std::string h = header.dump();
-  while ((8 + h.size()) % 8) h.push_back(' ');
-  std::vector<uint8_t> out(8 + h.size() + off);
-  uint64_t n = h.size();
-  for (int i = 0; i < 8; ++i) out[size_t(i)] = uint8_t(n >> (8 * i));
-  std::memcpy(out.data() + 8, h.data(), h.size());
-  size_t pos = 8 + h.size();
-  for (const auto& t : tensors) {
-    if (!t.bytes.empty()) std::memcpy(out.data() + pos, t.bytes.data(), t.bytes.size());
-    pos += t.bytes.size();
+  std::vector<uint8_t> header;
+  try {
+    header = safetensors_header(specs, metadata);
+  } catch (const Error& e) {
+    throw Error(path + ": " + e.what());
   }
-  write_file_atomic(path, out.data(), out.size());
+  AtomicFileWriter w(path);
+  w.write(header.data(), header.size());
+  for (const auto& t : tensors) w.write(t.bytes.data(), t.bytes.size());
+  w.commit();
+}
+
+AtomicFileWriter::AtomicFileWriter(const std::string& path) : path_(path) {
+  tmp_ = path + ".tmp." + std::to_string(::getpid());
+  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw Error(path + ": cannot write: " + std::strerror(errno));
+}
+
+AtomicFileWriter::~AtomicFileWriter() {
+  if (fd_ >= 0) {
+    ::close(fd_);
+    ::unlink(tmp_.c_str());
+  }
+}
+
+void AtomicFileWriter::write(const void* data, size_t size) {
+  const auto* p = static_cast<const uint8_t*>(data);
+  while (size > 0) {
+    ssize_t w = ::write(fd_, p, size);
+    if (w < 0) {
+      if (errno == EINTR) continue;
+      throw Error(path_ + ": write failed: " + std::strerror(errno));
+    }
+    p += w;
+    size -= size_t(w);
+  }
+}
+
+void AtomicFileWriter::commit() {
+  const int fd = fd_;
+  fd_ = -1;
+  if (::fsync(fd) != 0 || ::close(fd) != 0) {
+    ::unlink(tmp_.c_str());
+    throw Error(path_ + ": write failed: " + std::strerror(errno));
+  }
+  if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp_.c_str());
+    throw Error(path_ + ": cannot rename temporary file into place: " + std::strerror(err));
+  }
 }
 
 void write_file_atomic(const std::string& path, const void* data, size_t size) {
-  std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd < 0) throw Error(path + ": cannot write: " + std::strerror(errno));
-  const auto* p = static_cast<const uint8_t*>(data);
-  size_t left = size;
-  while (left > 0) {
-    ssize_t w = ::write(fd, p, left);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      int err = errno;
-      ::close(fd);
-      ::unlink(tmp.c_str());
-      throw Error(path + ": write failed: " + std::strerror(err));
-    }
-    p += w;
-    left -= size_t(w);
-  }
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    ::unlink(tmp.c_str());
-    throw Error(path + ": write failed: " + std::strerror(errno));
-  }
-  if (::rename(tmp.c_str(), path.c_str()) != 0) {
-    int err = errno;
-    ::unlink(tmp.c_str());
-    throw Error(path + ": cannot rename temporary file into place: " + std::strerror(err));
-  }
+  AtomicFileWriter w(path);
+  w.write(data, size);
+  w.commit();
 }
 
 void write_file_atomic(const std::string& path, const std::string& text) {

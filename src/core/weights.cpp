@@ -14,6 +14,13 @@ WeightView WeightView::sub(const std::string& name) const { return WeightView(ma
 
 bool WeightView::has(const std::string& name) const { return map_->find(key(name)) != nullptr; }
 
+WeightMap WeightMap::recorder(const std::string& label) {
+  WeightMap m;
+  m.label_ = label;
+  m.recording_ = true;
+  return m;
+}
+
 static std::string vec_str(const std::vector<int64_t>& v) {
   std::string s = "[";
   for (size_t i = 0; i < v.size(); ++i) s += (i ? "," : "") + std::to_string(v[i]);
@@ -22,6 +29,13 @@ static std::string vec_str(const std::vector<int64_t>& v) {
 
 WeightRef WeightView::get(const std::string& name, const Shape& expected) const {
   const std::string k = key(name);
+  if (map_->recording()) {
+    map_->record(k, expected);
+    WeightRef r;
+    r.key = k;
+    r.shape = expected;
+    return r;
+  }
   const StoredTensor* t = map_->find(k);
   if (!t) throw Error(map_->label() + ": missing tensor " + k + " (expected shape " + expected.str() + ")");
   std::vector<int64_t> want = expected.vec();
@@ -51,6 +65,7 @@ WeightRef WeightView::get(const std::string& name, const Shape& expected) const 
 
 Tensor WeightView::get_f32(const std::string& name, const Shape& expected) const {
   WeightRef r = get(name, expected);
+  if (map_->recording()) return Tensor::zeros(expected);
   Tensor out(expected);
   if (r.dtype == DType::I8) {
     const int64_t rows = expected[0], cols = expected.numel() / std::max<int64_t>(rows, 1);
@@ -82,6 +97,7 @@ std::vector<std::string> WeightMap::unused_keys() const {
 }
 
 void WeightMap::check_all_used(const std::vector<std::string>& tolerated) const {
+  if (recording_) return;
   for (const auto& k : unused_keys()) {
     bool ok = false;
     for (const auto& t : tolerated) ok = ok || k.find(t) != std::string::npos;

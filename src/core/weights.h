@@ -51,6 +51,12 @@ class WeightMap {
   // variant. `label` names the component in messages ("unet", "vae", ...).
   static WeightMap load_dir(const std::string& dir, const std::string& stem, const std::string& label);
   static WeightMap load_file(const std::string& path, const std::string& label);
+  // A map with no data that records every (key, shape) a model asks for: constructing a model on it enumerates the
+  // architecture's parameter tree (synthetic weights, `inspect`). get() returns null data; get_f32() zeros.
+  static WeightMap recorder(const std::string& label);
+  bool recording() const { return recording_; }
+  const std::vector<std::pair<std::string, Shape>>& recorded() const { return recorded_; }
+  void record(const std::string& key, const Shape& shape) const { recorded_.push_back({key, shape}); }
 
   WeightView root() const { return WeightView(this, ""); }
   const std::string& label() const { return label_; }
@@ -73,6 +79,8 @@ class WeightMap {
   std::map<std::string, const StoredTensor*> index_;
   mutable std::set<std::string> used_;
   mutable std::vector<std::shared_ptr<uint8_t[]>> copies_;
+  bool recording_ = false;
+  mutable std::vector<std::pair<std::string, Shape>> recorded_;
 };
 
 }  // namespace egopd

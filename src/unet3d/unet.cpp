@@ -1,6 +1,7 @@
 #include "unet3d/unet.h"
 
 #include <cstring>
+#include <optional>
 
 #include "core/error.h"
 #include "core/kernels/channel_ops.h"
@@ -119,6 +120,8 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
                 std::to_string(down_factor));
   const int64_t ted = cfg_.time_embed_dim(), c0 = cfg_.block_out_channels[0], ad = cfg_.addition_time_embed_dim;
   arena_.reset();
+  std::optional<ScopedStage> stage;
+  stage.emplace(profile_, "embeddings");
 
   // emb [B, ted] = time_embedding(Sin(t, c0)) + add_embedding(concat_k Sin(ids[b, k], ad)); SiLU, per frame
   Tensor tsin({B, c0}), th({B, ted}), emb({B, ted});
@@ -136,17 +139,21 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
   silu_inplace(temb_silu.data(), N * ted);
 
   // [B, F, Cin, h, w] -> [B*F, Cin, h, w] (a view), conv_in
+  stage.emplace(profile_, "conv_in_out");
   Tensor x({N, c0, h, w});
   conv_in_.forward(sample.data(), N, h, w, x.data());
   std::vector<Tensor> skips{x};
   size_t ti = 0;  // transformer index into cond
   for (const auto& d : down_) {
     for (size_t j = 0; j < d.resnets.size(); ++j) {
+      stage.emplace(profile_, "resblock");
       x = d.resnets[j].forward(x, B, temb_silu.data(), arena_);
+      stage.emplace(profile_, "transformer");
       if (!d.attentions.empty()) x = d.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
       skips.push_back(x);
     }
     if (d.has_downsampler) {
+      stage.emplace(profile_, "downsample");
       const auto& g = d.downsampler.geom;
       Tensor y({N, g.cout, g.out_h(x.dim(2)), g.out_w(x.dim(3))});
       d.downsampler.forward(x.data(), N, x.dim(2), x.dim(3), y.data());
@@ -154,21 +161,28 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       skips.push_back(x);
     }
   }
+  stage.emplace(profile_, "resblock");
   x = mid_res0_.forward(x, B, temb_silu.data(), arena_);
+  stage.emplace(profile_, "transformer");
   x = mid_attn_.forward(x, B, cond.transformers[ti++], arena_);
+  stage.emplace(profile_, "resblock");
   x = mid_res1_.forward(x, B, temb_silu.data(), arena_);
 
   for (const auto& u : up_) {
     for (size_t j = 0; j < u.resnets.size(); ++j) {
+      stage.emplace(profile_, "skip_concat");
       Tensor skip = skips.back();
       skips.pop_back();
       const int64_t H = x.dim(2), W = x.dim(3);
       Tensor cat({N, x.dim(1) + skip.dim(1), H, W});  // [hidden, skip] along channels
       concat_channels(x.data(), x.dim(1), skip.data(), skip.dim(1), N, H * W, cat.data());
+      stage.emplace(profile_, "resblock");
       x = u.resnets[j].forward(cat, B, temb_silu.data(), arena_);
+      stage.emplace(profile_, "transformer");
       if (!u.attentions.empty()) x = u.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
     }
     if (u.has_upsampler) {
+      stage.emplace(profile_, "upsample");
       const int64_t C = x.dim(1), H = x.dim(2), W = x.dim(3);
       Tensor up({N, C, 2 * H, 2 * W});
       upsample_nearest2x(x.data(), N * C, H, W, up.data());
@@ -178,6 +192,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
     }
   }
 
+  stage.emplace(profile_, "conv_in_out");
   Tensor a({N, c0, h, w});
   norm_out_.forward(x.data(), a.data(), N, 1, h * w, /*silu=*/true);
   Tensor out({B, F, cfg_.out_channels, h, w});

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/layers.h"
+#include "core/timing.h"
 #include "core/weights.h"
 #include "unet3d/resblock.h"
 #include "unet3d/transformer.h"
@@ -33,8 +34,15 @@ class UNetSpatioTemporal {
   // -> v-prediction [B, F, out_channels, h, w]
   Tensor forward(const Tensor& sample, float timestep, const Tensor& added_time_ids, const UNetConditioning& cond);
 
-  // Work of one evaluation in FLOPs (multiply-add = 2), as executed (folded single-token attentions excluded).
-  double flops(int64_t videos, int64_t frames, int64_t h, int64_t w) const;
+  // Work of one evaluation in FLOPs (multiply-add = 2) counted from the config: `total` as PyTorch runs it,
+  // `executed` without the single-token cross-attentions that folding removes (their once-per-run cost excluded).
+  struct Flops {
+    double total = 0, executed = 0;
+  };
+  Flops flops(int64_t videos, int64_t frames, int64_t h, int64_t w, int64_t context_tokens, int64_t text_tokens) const;
+  // Attach a per-block-type time breakdown (null: off).
+  void set_profile(StageTimes* times) { profile_ = times; }
+  const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
 
  private:
   struct DownBlock {
@@ -61,6 +69,7 @@ class UNetSpatioTemporal {
   TransformerSpatioTemporal mid_attn_;
   std::vector<UpBlock> up_;
   Arena arena_;
+  StageTimes* profile_ = nullptr;
 };
 
 }  // namespace egopd

@@ -1,0 +1,108 @@
+// `egopd bench unet`: one or more denoiser evaluations of a real-size U-Net with deterministic random weights.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <unistd.h>
+
+#include <cmath>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "core/synthetic_weights.h"
+#include "core/threading.h"
+#include "core/timing.h"
+#include "unet3d/unet.h"
+
+namespace egopd {
+namespace fs = std::filesystem;
+
+DType parse_weight_dtype(const std::string& s, const std::string& option) {
+  if (s == "f32") return DType::F32;
+  if (s == "f16") return DType::F16;
+  if (s == "bf16") return DType::BF16;
+  throw Error("--" + option + " must be f32, f16 or bf16 (got '" + s + "')");
+}
+
+int bench_unet(const Args& a) {
+  const std::string config = a.get("config", "svd-xt");
+  const int64_t frames = a.get_int("frames", 16);
+  const int64_t size = a.get_int("size", 256);
+  const DType dtype = parse_weight_dtype(a.get("dtype", "f16"), "dtype");
+  const int64_t evals = a.get_int("evals", 1);
+  const bool pifr = a.flag("pifr");
+  const bool json = a.flag("json");
+  const std::string weights_dir = a.get("weights", "");
+  a.finish();
+  if (config != "svd-xt") throw Error("bench unet: --config must be svd-xt (got '" + config + "')");
+  if (frames < 1 || size < 64 || size % 64 || evals < 1)
+    throw Error("bench unet: need --frames >= 1, --size a multiple of 64, --evals >= 1");
+
+  UNetConfig cfg = UNetConfig::svd_xt(pifr);
+  std::shared_ptr<const WeightMap> weights;
+  std::string tmp;
+  if (!weights_dir.empty()) {
+    weights = std::make_shared<WeightMap>(WeightMap::load_dir(weights_dir, "diffusion_pytorch_model", "unet"));
+  } else {
+    auto recorder = std::make_shared<WeightMap>(WeightMap::recorder("unet"));
+    UNetSpatioTemporal shape_only(cfg, recorder);
+    tmp = (fs::temp_directory_path() / ("egopd-bench-unet-" + std::to_string(::getpid()) + ".safetensors")).string();
+    std::fprintf(stderr, "bench unet: writing %zu random %s tensors to %s\n", recorder->recorded().size(),
+                 dtype_name(dtype), tmp.c_str());
+    write_synthetic_safetensors(tmp, recorder->recorded(), dtype, 1234);
+    weights = std::make_shared<WeightMap>(WeightMap::load_file(tmp, "unet"));
+  }
+  struct Cleanup {
+    std::string path;
+    ~Cleanup() {
+      if (!path.empty()) std::remove(path.c_str());
+    }
+  } cleanup{tmp};
+
+  UNetSpatioTemporal unet(cfg, weights);
+  const int64_t h = size / 8, w = size / 8;
+  Tensor sample({1, frames, cfg.in_channels, h, w}), ehs({1, 1, cfg.cross_attention_dim[0]}), ids({1, 3});
+  for (int64_t i = 0; i < sample.numel(); ++i) sample[i] = float((i * 7919) % 2001) / 1000.0f - 1.0f;
+  for (int64_t i = 0; i < ehs.numel(); ++i) ehs[i] = float((i * 104729) % 2001) / 1000.0f - 1.0f;
+  ids[0] = 4, ids[1] = 127, ids[2] = 0.02f;
+  Tensor text;
+  if (pifr) {
+    text = Tensor({1, 77, cfg.pifr_text_dim});
+    for (int64_t i = 0; i < text.numel(); ++i) text[i] = float((i * 31) % 2001) / 1000.0f - 1.0f;
+  }
+  UNetConditioning cond = unet.prepare(ehs, pifr ? &text : nullptr);
+
+  StageTimes stages;
+  unet.set_profile(&stages);
+  std::vector<double> secs;
+  for (int64_t e = 0; e < evals; ++e) {
+    auto t0 = std::chrono::steady_clock::now();
+    Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
+    secs.push_back(seconds_since(t0));
+    if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
+    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals,
+                 secs.back());
+  }
+  std::sort(secs.begin(), secs.end());
+  const auto fl = unet.flops(1, frames, h, w, 1, pifr ? 77 : 0);
+  BenchReport r;
+  r.target = "unet";
+  r.seconds = secs[secs.size() / 2];
+  r.gflop = fl.executed / 1e9;
+  r.threads = num_threads();
+  r.extra["config"] = config;
+  r.extra["frames"] = frames;
+  r.extra["latent"] = std::to_string(h) + "x" + std::to_string(w);
+  r.extra["dtype"] = dtype_name(dtype);
+  r.extra["pifr"] = pifr;
+  r.extra["evaluations"] = evals;
+  r.extra["gflop_pytorch_count"] = fl.total / 1e9;
+  r.extra["weights_bytes"] = weights->total_bytes();
+  nlohmann::ordered_json br = nlohmann::ordered_json::object();
+  for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
+  r.extra["breakdown_seconds"] = br;
+  print_bench_report(r, json);
+  return 0;
+}
+
+}  // namespace egopd
