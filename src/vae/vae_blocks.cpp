@@ -1,0 +1,271 @@
+#include "vae/vae_blocks.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "core/error.h"
+#include "core/kernels/attention.h"
+#include "core/kernels/elementwise.h"
+#include "core/kernels/layout.h"
+#include "vae/vae_config.h"
+
+namespace egopd {
+
+// ---------------------------------------------------------------- ResnetBlock2D
+
+ResnetBlock2D::ResnetBlock2D(const WeightView& w, int64_t cin_, int64_t cout_, float eps)
+    : cin(cin_),
+      cout(cout_),
+      norm1(w, "norm1", cin_, VaeConfig::kGroups, eps),
+      norm2(w, "norm2", cout_, VaeConfig::kGroups, eps),
+      conv1(w, "conv1", cin_, cout_, 3, 1, 1),
+      conv2(w, "conv2", cout_, cout_, 3, 1, 1),
+      has_shortcut(cin_ != cout_) {
+  if (has_shortcut) conv_shortcut = Conv2d(w, "conv_shortcut", cin, cout, 1, 1, 0);
+}
+
+void ResnetBlock2D::forward_frame(const float* x, float* out, int64_t H, int64_t W, float* scratch) const {
+  EGOPD_CHECK(!has_shortcut || out != x, "a res-block that changes width cannot run in place");
+  const int64_t hw = H * W;
+  float* n1 = scratch;           // [cin, H, W]
+  float* h = scratch + cin * hw;  // [cout, H, W]
+  norm1.forward(x, n1, 1, 1, hw, /*silu=*/true);
+  conv1.forward(n1, 1, H, W, h);
+  norm2.forward(h, h, 1, 1, hw, /*silu=*/true);
+  if (has_shortcut) {
+    conv_shortcut.forward(x, 1, H, W, out);
+  } else if (out != x) {
+    std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
+  }
+  conv2.forward(h, 1, H, W, out, Act::None, /*accumulate=*/true);  // out = shortcut(x) + conv2(h)
+}
+
+// ---------------------------------------------------------------- MidBlockAttention
+
+MidBlockAttention::MidBlockAttention(const WeightView& w, int64_t c_)
+    : c(c_),
+      group_norm(w, "group_norm", c_, VaeConfig::kGroups, 1e-6f),
+      to_q(w, "to_q", c_, c_),
+      to_k(w, "to_k", c_, c_),
+      to_v(w, "to_v", c_, c_),
+      to_out(w, "to_out.0", c_, c_) {}
+
+void MidBlockAttention::forward_frame(float* x, int64_t hw, float* scratch) const {
+  float* n = scratch;          // [c, L]
+  float* tok = n + c * hw;     // [L, c]
+  float* q = tok + c * hw;     // [L, c]
+  float* k = q + c * hw;       // [L, c]
+  float* v = k + c * hw;       // [L, c]
+  float* a = v + c * hw;       // [L, c]
+  group_norm.forward(x, n, 1, 1, hw, /*silu=*/false);
+  transpose_batched(n, tok, 1, c, hw);  // [c, L] -> [L, c]
+  to_q.forward(tok, hw, q);
+  to_k.forward(tok, hw, k);
+  to_v.forward(tok, hw, v);
+  AttentionArgs args;
+  args.batch = 1;
+  args.heads = 1;
+  args.lq = args.lk = hw;
+  args.dh = c;
+  args.q = q;
+  args.k = k;
+  args.v = v;
+  args.out = a;
+  args.q_ld = args.k_ld = args.v_ld = args.out_ld = c;
+  args.scale = float(1.0 / std::sqrt(double(c)));
+  attention(args);
+  to_out.forward(a, hw, tok);           // o [L, c]
+  transpose_batched(tok, n, 1, hw, c);  // [L, c] -> [c, L]
+  add_inplace(x, n, c * hw);            // residual
+}
+
+// ---------------------------------------------------------------- EncoderDownsample / Upsample2x
+
+EncoderDownsample::EncoderDownsample(const WeightView& w, int64_t c_) : c(c_), conv(w, "conv", c_, c_, 3, 2, 0) {}
+
+void EncoderDownsample::forward_frame(const float* x, int64_t H, int64_t W, float* y, float* scratch) const {
+  const int64_t pw = W + 1;
+  float* padded = scratch;  // [c, H+1, W+1]: x with a zero column on the right and a zero row at the bottom
+  for (int64_t ch = 0; ch < c; ++ch) {
+    float* dst = padded + ch * (H + 1) * pw;
+    const float* src = x + ch * H * W;
+    for (int64_t r = 0; r < H; ++r) {
+      std::memcpy(dst + r * pw, src + r * W, size_t(W) * sizeof(float));
+      dst[r * pw + W] = 0.0f;
+    }
+    std::fill(dst + H * pw, dst + (H + 1) * pw, 0.0f);
+  }
+  conv.forward(padded, 1, H + 1, W + 1, y);
+}
+
+Upsample2x::Upsample2x(const WeightView& w, int64_t c_) : c(c_), conv(w, "conv", c_, c_, 3, 1, 1) {}
+
+void Upsample2x::forward_frame(const float* x, int64_t H, int64_t W, float* y, float* scratch) const {
+  upsample_nearest2x(x, c, H, W, scratch);  // [c, H, W] -> [c, 2H, 2W]
+  conv.forward(scratch, 1, 2 * H, 2 * W, y);
+}
+
+// ---------------------------------------------------------------- TemporalResnetBlock
+
+namespace {
+
+bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
+
+// Per-channel scale and shift of a 5-D GroupNorm of one video [F, c, hw]: statistics of each group over all frames,
+// mean then biased variance, both in double (two passes), exactly the kernel's recipe; y = x·scale[ch] + shift[ch].
+void video_group_norm_affine(const float* x, int64_t frames, int64_t hw, const GroupNorm& gn, float* scale,
+                             float* shift) {
+  const int64_t c = gn.c, cg = c / gn.groups;
+  const double count = double(frames * cg * hw);
+#pragma omp parallel for schedule(dynamic, 1) if (parallel_worth(frames * c * hw))
+  for (int64_t g = 0; g < gn.groups; ++g) {
+    double part[4] = {0, 0, 0, 0};  // independent partial sums keep the adder pipeline busy
+    for (int64_t f = 0; f < frames; ++f) {
+      const float* p = x + (f * c + g * cg) * hw;
+      const int64_t n = cg * hw;
+      int64_t i = 0;
+      for (; i + 4 <= n; i += 4)
+        for (int u = 0; u < 4; ++u) part[u] += p[i + u];
+      for (; i < n; ++i) part[0] += p[i];
+    }
+    const double mean = (part[0] + part[1]) + (part[2] + part[3]);
+    const double mu = mean / count;
+    double sq[4] = {0, 0, 0, 0};
+    for (int64_t f = 0; f < frames; ++f) {
+      const float* p = x + (f * c + g * cg) * hw;
+      const int64_t n = cg * hw;
+      int64_t i = 0;
+      for (; i + 4 <= n; i += 4)
+        for (int u = 0; u < 4; ++u) {
+          const double d = p[i + u] - mu;
+          sq[u] += d * d;
+        }
+      for (; i < n; ++i) sq[0] += (p[i] - mu) * (p[i] - mu);
+    }
+    const double var = ((sq[0] + sq[1]) + (sq[2] + sq[3])) / count;
+    const float mean_f = float(mu);
+    const float rstd = float(1.0 / std::sqrt(var + double(gn.eps)));
+    for (int64_t ci = 0; ci < cg; ++ci) {
+      const int64_t ch = g * cg + ci;
+      scale[ch] = rstd * gn.gamma[ch];
+      shift[ch] = gn.beta[ch] - mean_f * scale[ch];
+    }
+  }
+}
+
+// tile [F, c, tn] = SiLU(src[:, :, t0:t0+tn] · scale + shift) of a video src [F, c, hw].
+void gather_norm_silu(const float* src, int64_t frames, int64_t c, int64_t hw, int64_t t0, int64_t tn,
+                      const float* scale, const float* shift, float* tile) {
+#pragma omp parallel for schedule(static) if (parallel_worth(frames * c * tn))
+  for (int64_t r = 0; r < frames * c; ++r) {
+    const int64_t ch = r % c;
+    const float* s = src + r * hw + t0;
+    float* d = tile + r * tn;
+    for (int64_t i = 0; i < tn; ++i) d[i] = s[i] * scale[ch] + shift[ch];
+  }
+  silu_inplace(tile, frames * c * tn);
+}
+
+// dst[:, :, t0:t0+tn] = tile [rows, tn]
+void scatter_tile(const float* tile, int64_t rows, int64_t hw, int64_t t0, int64_t tn, float* dst) {
+#pragma omp parallel for schedule(static) if (parallel_worth(rows * tn))
+  for (int64_t r = 0; r < rows; ++r) std::memcpy(dst + r * hw + t0, tile + r * tn, size_t(tn) * sizeof(float));
+}
+
+// AlphaBlender with the temporal branch u = s + g: s <- ws·s + wt·u on dst[:, :, t0:t0+tn], g = tile [rows, tn].
+void blend_tile(const float* g, int64_t rows, int64_t hw, int64_t t0, int64_t tn, float ws, float wt, float* dst) {
+#pragma omp parallel for schedule(static) if (parallel_worth(rows * tn))
+  for (int64_t r = 0; r < rows; ++r) {
+    float* s = dst + r * hw + t0;
+    const float* gr = g + r * tn;
+    for (int64_t i = 0; i < tn; ++i) {
+      const float u = s[i] + gr[i];
+      s[i] = ws * s[i] + wt * u;
+    }
+  }
+}
+
+}  // namespace
+
+TemporalResnetBlock::TemporalResnetBlock(const WeightView& w, int64_t c_, float eps)
+    : c(c_),
+      norm1(w, "norm1", c_, VaeConfig::kGroups, eps),
+      norm2(w, "norm2", c_, VaeConfig::kGroups, eps),
+      conv1(w, "conv1", c_, c_),
+      conv2(w, "conv2", c_, c_) {}
+
+void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw, float spatial_weight,
+                                        int64_t tile_floats) const {
+  const int64_t rows = frames * c;
+  const int64_t tile = std::clamp<int64_t>(tile_floats / rows, 1, hw);
+  const bool whole = tile == hw;  // one tile: conv1 writes straight into g1
+  std::vector<float> scale(c), shift(c);
+  Tensor g1(Shape{frames, c, hw});  // conv1 output of the whole video (GroupNorm 2 needs all of it)
+  Tensor a(Shape{rows * tile}), b(Shape{whole ? 1 : rows * tile});
+
+  video_group_norm_affine(video, frames, hw, norm1, scale.data(), shift.data());
+  for (int64_t t0 = 0; t0 < hw; t0 += tile) {
+    const int64_t tn = std::min(tile, hw - t0);
+    gather_norm_silu(video, frames, c, hw, t0, tn, scale.data(), shift.data(), a.data());  // [F, c, tn]
+    if (whole) {
+      conv1.forward(a.data(), 1, frames, tn, g1.data());
+    } else {
+      conv1.forward(a.data(), 1, frames, tn, b.data());
+      scatter_tile(b.data(), rows, hw, t0, tn, g1.data());
+    }
+  }
+
+  video_group_norm_affine(g1.data(), frames, hw, norm2, scale.data(), shift.data());
+  const float temporal_weight = 1.0f - spatial_weight;
+  if (whole) b = Tensor(Shape{rows * tile});
+  for (int64_t t0 = 0; t0 < hw; t0 += tile) {
+    const int64_t tn = std::min(tile, hw - t0);
+    gather_norm_silu(g1.data(), frames, c, hw, t0, tn, scale.data(), shift.data(), a.data());
+    conv2.forward(a.data(), 1, frames, tn, b.data());  // g [F, c, tn]
+    blend_tile(b.data(), rows, hw, t0, tn, spatial_weight, temporal_weight, video);
+  }
+}
+
+// ---------------------------------------------------------------- SpatioTemporalResBlock
+
+SpatioTemporalResBlock::SpatioTemporalResBlock(const WeightView& w, int64_t cin, int64_t cout)
+    : spatial(w.sub("spatial_res_block"), cin, cout, 1e-6f), temporal(w.sub("temporal_res_block"), cout, 1e-5f) {
+  const float m = w.get_f32("time_mixer.mix_factor", {1})[0];
+  const float alpha = 1.0f / (1.0f + std::exp(-m));  // torch.sigmoid
+  spatial_weight = 1.0f - alpha;                     // switch_spatial_to_temporal_mix: alpha <- 1 - alpha
+}
+
+Tensor SpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frames, int64_t H, int64_t W,
+                                       const Upsample2x* pre, int64_t tile_floats) const {
+  const int64_t n = batch * frames, hw = H * W, ci = cin(), co = cout();
+  const int64_t hin = pre ? H / 2 : H, win = pre ? W / 2 : W;
+  EGOPD_CHECK(x.numel() == n * ci * hin * win, "res-block input " + x.shape().str() + " vs " + std::to_string(n) +
+                                                   " frames of [" + std::to_string(ci) + "," + std::to_string(hin) +
+                                                   "," + std::to_string(win) + "]");
+  EGOPD_CHECK(!pre || (pre->c == ci && H == 2 * hin && W == 2 * win), "upsampler does not fit the res-block");
+  Tensor out = (!pre && ci == co) ? x : Tensor(Shape{n, co, H, W});
+  {
+    // Spatial half, frame by frame: [upsampled frame (pre only)] [resnet scratch / nearest-upsampled frame]
+    const int64_t up = pre ? ci * hw : 0;
+    Tensor scratch(Shape{up + std::max(pre ? pre->scratch_floats(hin, win) : 0, spatial.scratch_floats(hw))});
+    for (int64_t f = 0; f < n; ++f) {
+      const float* xf = x.data() + f * ci * hin * win;
+      if (pre) {
+        pre->forward_frame(xf, hin, win, scratch.data(), scratch.data() + up);
+        xf = scratch.data();
+      }
+      spatial.forward_frame(xf, out.data() + f * co * hw, H, W, scratch.data() + up);
+    }
+  }
+  x = Tensor();  // the input's memory goes before the temporal half allocates its buffers
+  // Temporal half per video: R5 of frame-major rows is the same memory viewed as [F, C, H·W] per video.
+  for (int64_t b = 0; b < batch; ++b)
+    temporal.forward_blend(out.data() + b * frames * co * hw, frames, hw, spatial_weight, tile_floats);
+  return out.reshaped(Shape{n, co, H, W});
+}
+
+}  // namespace egopd
