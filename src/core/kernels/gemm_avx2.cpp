@@ -7,6 +7,8 @@
 #pragma GCC target("avx2,fma,f16c")
 #include <immintrin.h>
 
+#include "core/kernels/vec_math_avx2.h"
+
 namespace egopd::gemm_detail {
 
 namespace {
@@ -20,11 +22,25 @@ namespace {
     c1 = _mm256_fmadd_ps(av, b1, c1);            \
   } while (0)
 
+inline __m256 act_ps(Act act, __m256 v) {
+  switch (act) {
+    case Act::SiLU: return vmath::silu_ps(v);
+    case Act::GELU: return vmath::gelu_ps(v);
+    case Act::QuickGELU: return vmath::x_sigmoid_ps(v, 1.702f);
+    default: return v;
+  }
+}
+
 // One full row of the tile: v0/v1 = columns 0-7 / 8-15 of the sum.
 inline void store_row(float* c, __m256 v0, __m256 v1, int i, const TileEpilogue& ep) {
+  __m256 old0 = _mm256_setzero_ps(), old1 = _mm256_setzero_ps();
+  if (ep.load_c || ep.add_after) {
+    old0 = _mm256_loadu_ps(c);
+    old1 = _mm256_loadu_ps(c + 8);
+  }
   if (ep.load_c) {
-    v0 = _mm256_add_ps(v0, _mm256_loadu_ps(c));
-    v1 = _mm256_add_ps(v1, _mm256_loadu_ps(c + 8));
+    v0 = _mm256_add_ps(v0, old0);
+    v1 = _mm256_add_ps(v1, old1);
   }
   if (ep.bias_row) {
     const __m256 br = _mm256_broadcast_ss(ep.bias_row + i);
@@ -34,6 +50,14 @@ inline void store_row(float* c, __m256 v0, __m256 v1, int i, const TileEpilogue&
   if (ep.bias_col) {
     v0 = _mm256_add_ps(v0, _mm256_loadu_ps(ep.bias_col));
     v1 = _mm256_add_ps(v1, _mm256_loadu_ps(ep.bias_col + 8));
+  }
+  if (ep.act != Act::None) {
+    v0 = act_ps(ep.act, v0);
+    v1 = act_ps(ep.act, v1);
+  }
+  if (ep.add_after) {
+    v0 = _mm256_add_ps(v0, old0);
+    v1 = _mm256_add_ps(v1, old1);
   }
   _mm256_storeu_ps(c, v0);
   _mm256_storeu_ps(c + 8, v1);
@@ -95,7 +119,7 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
       }
     }
   }
-  if (mr == MR && nr == NR && ep.act == Act::None && !ep.add_after) {
+  if (mr == MR && nr == NR) {
     store_row(c, c00, c01, 0, ep);
     store_row(c + ldc, c10, c11, 1, ep);
     store_row(c + 2 * ldc, c20, c21, 2, ep);
