@@ -15,8 +15,7 @@ CaseOutputs run_vae_decode_case(const GoldenCase&);
 CaseOutputs run_rng_case(const GoldenCase&);
 CaseOutputs run_scheduler_euler_case(const GoldenCase&);
 CaseOutputs run_scheduler_lcm_case(const GoldenCase&);
-CaseOutputs run_vae_encode_case(const GoldenCase&);
-CaseOutputs run_vae_decode_case(const GoldenCase&);
+CaseOutputs run_mask_encoder_case(const GoldenCase&);
 // -- end declarations --
 
 namespace {
@@ -38,8 +37,7 @@ const Entry kRunners[] = {
     {"rng", run_rng_case},
     {"scheduler_euler", run_scheduler_euler_case},
     {"scheduler_lcm", run_scheduler_lcm_case},
-    {"vae_encode", run_vae_encode_case},
-    {"vae_decode", run_vae_decode_case},
+    {"mask_encoder", run_mask_encoder_case},
     // -- end table --
 };
 }  // namespace
