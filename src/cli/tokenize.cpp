@@ -1,0 +1,51 @@
+// `egopd tokenize TEXT... --tokenizer DIR`: the CLIP BPE ids of each prompt (BOS, content, EOS, padding to 77).
+#include <cstdio>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "clip_text/clip_tokenizer.h"
+#include "core/error.h"
+
+namespace egopd {
+
+int cmd_tokenize(const Args& a) {
+  if (!a.has("tokenizer"))
+    throw Error("tokenize: --tokenizer DIR is required (a folder with vocab.json and merges.txt, e.g. a model's "
+                "tokenizer/; there is no built-in default tokenizer)");
+  const std::string dir = a.require("tokenizer");
+  const bool json = a.flag("json");
+  const bool has_pad = a.has("pad-id");
+  const int64_t pad_override = a.get_int("pad-id", 0);
+  a.finish();
+  if (a.positional().empty()) throw Error("tokenize: give the text to tokenize (quote it)");
+
+  ClipTokenizer tok = ClipTokenizer::load_dir(dir);
+  if (has_pad) {
+    if (pad_override < 0 || pad_override >= int64_t(tok.vocab_size()))
+      throw Error("tokenize: --pad-id must be a vocabulary id (0.." + std::to_string(tok.vocab_size() - 1) + ")");
+    tok.set_pad_id(pad_override);
+  }
+  for (const auto& text : a.positional()) {
+    const TokenizedText t = tok.encode(text);
+    if (t.truncated)
+      std::fprintf(stderr, "egopd: warning: the prompt has %lld tokens; truncated to %lld (EOS kept last)\n",
+                   static_cast<long long>(t.full_length), static_cast<long long>(tok.context_length()));
+    if (json) {
+      nlohmann::ordered_json j;
+      j["text"] = text;
+      j["ids"] = t.ids;
+      j["length"] = t.length;
+      j["truncated"] = t.truncated;
+      std::printf("%s\n", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
+    } else {
+      std::string line;
+      for (size_t i = 0; i < t.ids.size(); ++i) line += (i ? " " : "") + std::to_string(t.ids[i]);
+      std::printf("%s\n", line.c_str());
+    }
+  }
+  return 0;
+}
+
+}  // namespace egopd
