@@ -6,6 +6,7 @@
 #include <omp.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <random>
 #include <string>
 #include <vector>
@@ -187,4 +188,16 @@ BENCHMARK(BM_egopd_conv_temporal3)
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+#if EGOPD_BENCH_ONEDNN
+  // egopd's kernels use AVX2/FMA (the 196 GFLOP/s peak); compare with oneDNN at the same ISA unless asked
+  // otherwise (EGOPD_BENCH_ONEDNN_ISA=native lets it use AVX-512 where the CPU has it).
+  const char* isa = std::getenv("EGOPD_BENCH_ONEDNN_ISA");
+  if (!isa || std::string(isa) != "native") dnnl::set_max_cpu_isa(dnnl::cpu_isa::avx2);
+#endif
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -71,6 +71,11 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
          c11 = _mm256_setzero_ps(), c20 = _mm256_setzero_ps(), c21 = _mm256_setzero_ps(),
          c30 = _mm256_setzero_ps(), c31 = _mm256_setzero_ps(), c40 = _mm256_setzero_ps(),
          c41 = _mm256_setzero_ps(), c50 = _mm256_setzero_ps(), c51 = _mm256_setzero_ps();
+  if (ep.load_c || ep.add_after)  // the C tile is read after the loop: start fetching it now
+    for (int i = 0; i < mr; ++i) {
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc + 15), _MM_HINT_T0);
+    }
   if (a_rs == 1 && a_cs == MR) {  // packed A micro-panel
     const float* ap = a;
 #pragma GCC unroll 4
