@@ -10,12 +10,12 @@
 namespace egopd {
 
 Shape::Shape(std::initializer_list<int64_t> dims) {
-  EGOPD_CHECK(dims.size() <= size_t(kMaxDims), "tensor rank above 5");
+  EGOPD_CHECK(dims.size() <= size_t(kMaxDims), "tensor rank above 6");
   for (int64_t v : dims) d_[n_++] = v;
 }
 
 Shape::Shape(const std::vector<int64_t>& dims) {
-  if (dims.size() > size_t(kMaxDims)) throw Error("tensor rank " + std::to_string(dims.size()) + " above 5");
+  if (dims.size() > size_t(kMaxDims)) throw Error("tensor rank " + std::to_string(dims.size()) + " above 6");
   for (int64_t v : dims) d_[n_++] = v;
 }
 

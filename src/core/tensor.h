@@ -1,5 +1,5 @@
 #pragma once
-// Float32 tensors (contiguous, row-major, up to 5-D) and the buffers behind them.
+// Float32 tensors (contiguous, row-major, up to 6-D) and the buffers behind them.
 #include <array>
 #include <cstdint>
 #include <initializer_list>
@@ -9,7 +9,7 @@
 
 namespace egopd {
 
-constexpr int kMaxDims = 5;
+constexpr int kMaxDims = 6;
 
 class Shape {
  public:

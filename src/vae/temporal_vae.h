@@ -43,12 +43,12 @@ struct VaeEncoder {
 // TemporalDecoder (vae.md §4).
 struct TemporalDecoder {
   struct UpBlock {
-    std::vector<SpatioTemporalResBlock> resnets;
+    std::vector<VaeSpatioTemporalResBlock> resnets;
     std::optional<Upsample2x> upsampler;
   };
   VaeConfig cfg;
   Conv2d conv_in;
-  std::vector<SpatioTemporalResBlock> mid_resnets;  // layers_per_block of them; only 0 and 1 ever run
+  std::vector<VaeSpatioTemporalResBlock> mid_resnets;  // layers_per_block of them; only 0 and 1 ever run
   MidBlockAttention mid_attention;                  // runs between mid_resnets 0 and 1 (not at all if there is no 1)
   std::vector<UpBlock> up_blocks;
   GroupNorm conv_norm_out;

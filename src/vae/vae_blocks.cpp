@@ -230,16 +230,16 @@ void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw
   }
 }
 
-// ---------------------------------------------------------------- SpatioTemporalResBlock
+// ---------------------------------------------------------------- VaeSpatioTemporalResBlock
 
-SpatioTemporalResBlock::SpatioTemporalResBlock(const WeightView& w, int64_t cin, int64_t cout)
+VaeSpatioTemporalResBlock::VaeSpatioTemporalResBlock(const WeightView& w, int64_t cin, int64_t cout)
     : spatial(w.sub("spatial_res_block"), cin, cout, 1e-6f), temporal(w.sub("temporal_res_block"), cout, 1e-5f) {
   const float m = w.get_f32("time_mixer.mix_factor", {1})[0];
   const float alpha = 1.0f / (1.0f + std::exp(-m));  // torch.sigmoid
   spatial_weight = 1.0f - alpha;                     // switch_spatial_to_temporal_mix: alpha <- 1 - alpha
 }
 
-Tensor SpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frames, int64_t H, int64_t W,
+Tensor VaeSpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frames, int64_t H, int64_t W,
                                        const Upsample2x* pre, int64_t tile_floats) const {
   const int64_t n = batch * frames, hw = H * W, ci = cin(), co = cout();
   const int64_t hin = pre ? H / 2 : H, win = pre ? W / 2 : W;

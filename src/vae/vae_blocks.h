@@ -74,14 +74,14 @@ struct TemporalResnetBlock {
 
 constexpr int64_t kDefaultTileFloats = int64_t(1) << 22;
 
-// Decoder SpatioTemporalResBlock: spatial ResnetBlock2D (eps 1e-6) per frame, TemporalResnetBlock (eps 1e-5) per
+// Decoder VaeSpatioTemporalResBlock: spatial ResnetBlock2D (eps 1e-6) per frame, TemporalResnetBlock (eps 1e-5) per
 // video, AlphaBlender `learned` with switch_spatial_to_temporal_mix: out = (1 − σ(m))·spatial + σ(m)·temporal.
-struct SpatioTemporalResBlock {
+struct VaeSpatioTemporalResBlock {
   ResnetBlock2D spatial;
   TemporalResnetBlock temporal;
   float spatial_weight = 0;  // 1 − sigmoid(time_mixer.mix_factor), evaluated as diffusers does in float32
 
-  SpatioTemporalResBlock(const WeightView& w, int64_t cin, int64_t cout);
+  VaeSpatioTemporalResBlock(const WeightView& w, int64_t cin, int64_t cout);
   int64_t cin() const { return spatial.cin; }
   int64_t cout() const { return spatial.cout; }
   // x [batch·frames, cin, H, W] -> [batch·frames, cout, H, W]; with `pre`, x is [batch·frames, cin, H/2, W/2] and each

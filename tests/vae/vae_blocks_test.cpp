@@ -268,7 +268,7 @@ TEST(VaeBlocks, Upsample2xNearestThenConv) {
   expect_close(y.data(), want, 2e-5, "upsample");
 }
 
-// Decoder SpatioTemporalResBlock: spatial ResnetBlock2D (eps 1e-6) per frame; per video a 5-D GroupNorm (eps 1e-5)
+// Decoder VaeSpatioTemporalResBlock: spatial ResnetBlock2D (eps 1e-6) per frame; per video a 5-D GroupNorm (eps 1e-5)
 // over all frames, Conv3d (3,1,1) with zero time padding, twice; u = s + g; out = (1 − σ(m))·s + σ(m)·u.
 Vec ref_spatio_temporal(const TestWeights& tw, const Vec& x, int64_t batch, int64_t frames, int64_t cin, int64_t cout,
                         int64_t H, int64_t W) {
@@ -334,7 +334,7 @@ TEST(VaeBlocks, SpatioTemporalResBlockMatchesReference) {
   for (const auto& k : cases) {
     TestWeights tw = spatio_temporal_weights(k.cin, k.cout, false);
     WeightMap m = tw.load("st");
-    SpatioTemporalResBlock block(m.root().sub("b"), k.cin, k.cout);
+    VaeSpatioTemporalResBlock block(m.root().sub("b"), k.cin, k.cout);
     const int64_t n = k.batch * k.frames;
     Tensor x = random_tensor(Shape{n, k.cin, k.H, k.W}, 3 + k.cin * k.frames);
     Vec want = ref_spatio_temporal(tw, to_vec(x.data(), x.numel()), k.batch, k.frames, k.cin, k.cout, k.H, k.W);
@@ -352,7 +352,7 @@ TEST(VaeBlocks, SpatioTemporalResBlockWithFusedUpsampler) {
     set_num_threads(threads);
     TestWeights tw = spatio_temporal_weights(c, co, true);
     WeightMap m = tw.load("st_up");
-    SpatioTemporalResBlock block(m.root().sub("b"), c, co);
+    VaeSpatioTemporalResBlock block(m.root().sub("b"), c, co);
     Upsample2x up(m.root().sub("u"), c);
     Tensor x = random_tensor(Shape{frames, c, h, w}, 41);
     Vec upsampled;  // reference input: every frame nearest x2 then conv
