@@ -29,22 +29,32 @@ double act_ref(Act act, double x) {
 }
 
 // Weights stored in a dtype, with their exact values for the reference.
+// I8 weights carry one scale per output channel (each channel = `per_channel` consecutive elements).
 struct StoredWeight {
   DType dtype;
   std::vector<float> f32;
   std::vector<uint16_t> h16;
+  std::vector<int8_t> i8;
+  std::vector<float> scale;
   std::vector<double> value;
-  StoredWeight(size_t n, DType dt, std::mt19937& rng) : dtype(dt), f32(n), h16(n), value(n) {
+  StoredWeight(size_t n, DType dt, std::mt19937& rng, size_t per_channel = 1)
+      : dtype(dt), f32(n), h16(n), i8(n), value(n) {
     std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    if (dt == DType::I8)
+      for (size_t o = 0; o < n / per_channel; ++o) scale.push_back(0.005f + 0.001f * float(o % 7));
     for (size_t i = 0; i < n; ++i) {
       const float v = u(rng);
       if (dt == DType::F16) h16[i] = float_to_half(v), value[i] = half_to_float(h16[i]);
       else if (dt == DType::BF16) h16[i] = float_to_bf16(v), value[i] = bf16_to_float(h16[i]);
+      else if (dt == DType::I8) i8[i] = int8_t(std::lround(v * 127)), value[i] = float(i8[i]) * scale[i / per_channel];
       else f32[i] = v, value[i] = v;
     }
   }
   Operand operand(int64_t ld) const {
-    return Operand{dtype == DType::F32 ? static_cast<const void*>(f32.data()) : h16.data(), dtype, ld, false, nullptr};
+    const void* p = dtype == DType::F32 ? static_cast<const void*>(f32.data())
+                    : dtype == DType::I8 ? static_cast<const void*>(i8.data())
+                                         : static_cast<const void*>(h16.data());
+    return Operand{p, dtype, ld, false, scale.empty() ? nullptr : scale.data()};
   }
 };
 
@@ -80,7 +90,7 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   const Conv2dGeom g{c.cin, c.cout, c.k, c.k, c.stride, c.stride, c.pad, c.pad};
   const int64_t oh = g.out_h(c.h), ow = g.out_w(c.w), K = c.cin * c.k * c.k;
   const std::vector<float> x = random_vec(size_t(c.n * c.cin * c.h * c.w), rng);
-  const StoredWeight wt(size_t(c.cout * K), c.dt, rng);
+  const StoredWeight wt(size_t(c.cout * K), c.dt, rng, size_t(K));
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
@@ -127,7 +137,7 @@ struct TemporalCase {
 int run_temporal(const TemporalCase& c, uint32_t seed) {
   std::mt19937 rng(seed);
   const std::vector<float> x = random_vec(size_t(c.b * c.f * c.cin * c.hw), rng);
-  const StoredWeight wt(size_t(c.cout * c.cin * 3), c.dt, rng);  // [cout, cin, 3, 1, 1]
+  const StoredWeight wt(size_t(c.cout * c.cin * 3), c.dt, rng, size_t(c.cin * 3));  // [cout, cin, 3, 1, 1]
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
   const std::vector<float> y0 = y;
@@ -200,7 +210,7 @@ TEST_P(ConvTest, PatchEmbedding14x14) {
 
 TEST_P(ConvTest, WeightDtypesAndEpilogues) {
   uint32_t seed = 40;
-  for (DType dt : {DType::F32, DType::F16, DType::BF16})
+  for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8})
     for (Act act : {Act::None, Act::SiLU, Act::GELU})
       for (bool acc : {false, true}) {
         ConvCase c{2, 6, 11, 5, 7, 3, 1, 1, dt, true, act, acc};
@@ -218,6 +228,8 @@ TEST_P(ConvTest, Temporal) {
       EXPECT_EQ(run_temporal({2, f, 9, 13, hw, DType::F16}, seed++), 0);
     }
   EXPECT_EQ(run_temporal({1, 4, 150, 8, 20, DType::BF16}, seed++), 0);  // K = 450: taps split across K blocks
+  EXPECT_EQ(run_temporal({2, 3, 20, 12, 10, DType::F32}, seed++), 0);    // full 6-row panels, 8-channel runs
+  EXPECT_EQ(run_temporal({2, 3, 11, 7, 10, DType::I8}, seed++), 0);
   EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({2, 3, 140, 7, 9, DType::F16, Act::GELU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);

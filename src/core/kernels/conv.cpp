@@ -77,14 +77,30 @@ struct TemporalA : gemm_detail::ASource {
   TemporalA(const Operand& w, int64_t cin_, int64_t tap0_) : wt(w), cin(cin_), tap0(tap0_) {}
   void pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override {
     using gemm_detail::MR;
+    const bool fast = mr == MR && wt.dtype != DType::I8 && use_avx2();
+    for (int64_t k = k0; k < k0 + kc;) {  // one run per tap
+      const int64_t tap = tap0 + k / cin, c = k % cin, run = std::min(k0 + kc, (k / cin + 1) * cin) - k;
+      float* d = dst + (k - k0) * MR;
+      const int64_t done = fast ? conv_detail::pack_a_temporal6_avx2(wt.data, wt.dtype, cin, m0, tap, c, run, d) : 0;
+      pack_scalar(m0, mr, tap, c + done, run - done, d + done * MR);
+      k += run;
+    }
+  }
+
+  // dst[k*MR + i] = W[m0 + i, c0 + k, tap] for k < len (rows >= mr zero).
+  void pack_scalar(int64_t m0, int mr, int64_t tap, int64_t c0, int64_t len, float* dst) const {
+    using gemm_detail::MR;
     const size_t es = dtype_size(wt.dtype);
-    for (int i = 0; i < mr; ++i) {
+    for (int i = 0; i < MR; ++i) {
+      if (i >= mr) {
+        for (int64_t k = 0; k < len; ++k) dst[k * MR + i] = 0.0f;
+        continue;
+      }
       const int64_t o = m0 + i;
       const char* row = static_cast<const char*>(wt.data) + size_t(o * 3 * cin) * es;
       const float scale = wt.dtype == DType::I8 ? wt.scale[o] : 1.0f;
-      int64_t tap = tap0 + k0 / cin, c = k0 % cin;
-      for (int64_t k = 0; k < kc; ++k) {
-        const char* e = row + size_t(c * 3 + tap) * es;
+      for (int64_t k = 0; k < len; ++k) {
+        const char* e = row + size_t((c0 + k) * 3 + tap) * es;
         float v;
         switch (wt.dtype) {
           case DType::F32: v = *reinterpret_cast<const float*>(e); break;
@@ -93,11 +109,8 @@ struct TemporalA : gemm_detail::ASource {
           default: v = float(*reinterpret_cast<const int8_t*>(e)) * scale; break;
         }
         dst[k * MR + i] = v;
-        if (++c == cin) c = 0, ++tap;
       }
     }
-    for (int i = mr; i < MR; ++i)
-      for (int64_t k = 0; k < kc; ++k) dst[k * MR + i] = 0.0f;
   }
 };
 

@@ -33,4 +33,75 @@ void pack_im2col_shift_avx2(const float* xf, const ShiftGeom& s, int64_t k0, int
   }
 }
 
+namespace {
+
+__attribute__((always_inline)) inline __m256 load8(const void* p, DType dt, int64_t idx) {
+  if (dt == DType::F32) return _mm256_loadu_ps(static_cast<const float*>(p) + idx);
+  const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(static_cast<const uint16_t*>(p) + idx));
+  if (dt == DType::F16) return _mm256_cvtph_ps(h);
+  return _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_cvtepu16_epi32(h), 16));  // BF16
+}
+
+__attribute__((always_inline)) inline void transpose8(__m256* r) {
+  const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
+  const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
+  const __m256 t4 = _mm256_unpacklo_ps(r[4], r[5]), t5 = _mm256_unpackhi_ps(r[4], r[5]);
+  const __m256 t6 = _mm256_unpacklo_ps(r[6], r[7]), t7 = _mm256_unpackhi_ps(r[6], r[7]);
+  const __m256 s0 = _mm256_shuffle_ps(t0, t2, 0x44), s1 = _mm256_shuffle_ps(t0, t2, 0xEE);
+  const __m256 s2 = _mm256_shuffle_ps(t1, t3, 0x44), s3 = _mm256_shuffle_ps(t1, t3, 0xEE);
+  const __m256 s4 = _mm256_shuffle_ps(t4, t6, 0x44), s5 = _mm256_shuffle_ps(t4, t6, 0xEE);
+  const __m256 s6 = _mm256_shuffle_ps(t5, t7, 0x44), s7 = _mm256_shuffle_ps(t5, t7, 0xEE);
+  r[0] = _mm256_permute2f128_ps(s0, s4, 0x20);
+  r[1] = _mm256_permute2f128_ps(s1, s5, 0x20);
+  r[2] = _mm256_permute2f128_ps(s2, s6, 0x20);
+  r[3] = _mm256_permute2f128_ps(s3, s7, 0x20);
+  r[4] = _mm256_permute2f128_ps(s0, s4, 0x31);
+  r[5] = _mm256_permute2f128_ps(s1, s5, 0x31);
+  r[6] = _mm256_permute2f128_ps(s2, s6, 0x31);
+  r[7] = _mm256_permute2f128_ps(s3, s7, 0x31);
+}
+
+__attribute__((always_inline)) inline int64_t temporal6(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap,
+                                                        int64_t c0, int64_t len, float* dst) {
+  // Elements e = tap + 3j (j < 8) of 24 consecutive ones: 3j mod 8 is a permutation, so lane (tap + 3j) mod 8
+  // of exactly one of the three loaded vectors holds element j: blend the three, then permute.
+  alignas(32) int32_t from1[8], from2[8], perm[8];
+  for (int j = 0; j < 8; ++j) {
+    const int e = int(tap) + 3 * j, lane = e % 8;
+    from1[lane] = e / 8 == 1 ? -1 : 0;
+    from2[lane] = e / 8 == 2 ? -1 : 0;
+    perm[j] = lane;
+  }
+  const __m256 m1 = _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(from1)));
+  const __m256 m2 = _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(from2)));
+  const __m256i pidx = _mm256_load_si256(reinterpret_cast<const __m256i*>(perm));
+  const int64_t n8 = len / 8 * 8;
+  for (int64_t k = 0; k < n8; k += 8) {
+    __m256 r[8];
+    for (int i = 0; i < 6; ++i) {
+      const int64_t base = (m0 + i) * 3 * cin + (c0 + k) * 3;
+      const __m256 v0 = load8(w, dt, base), v1 = load8(w, dt, base + 8), v2 = load8(w, dt, base + 16);
+      r[i] = _mm256_permutevar8x32_ps(_mm256_blendv_ps(_mm256_blendv_ps(v0, v1, m1), v2, m2), pidx);
+    }
+    r[6] = r[7] = _mm256_setzero_ps();
+    transpose8(r);
+    for (int q = 0; q < 8; ++q) {  // column q: lanes 0-5 are the 6 rows
+      float* d = dst + (k + q) * 6;
+      _mm_storeu_ps(d, _mm256_castps256_ps128(r[q]));
+      _mm_storel_pi(reinterpret_cast<__m64*>(d + 4), _mm256_extractf128_ps(r[q], 1));
+    }
+  }
+  return n8;
+}
+
+}  // namespace
+
+int64_t pack_a_temporal6_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0, int64_t len,
+                              float* dst) {
+  if (dt == DType::F32) return temporal6(w, DType::F32, cin, m0, tap, c0, len, dst);
+  if (dt == DType::F16) return temporal6(w, DType::F16, cin, m0, tap, c0, len, dst);
+  if (dt == DType::BF16) return temporal6(w, DType::BF16, cin, m0, tap, c0, len, dst);
+  return 0;
+}
+
 }  // namespace egopd::conv_detail
