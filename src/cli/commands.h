@@ -10,10 +10,13 @@ namespace egopd {
 
 int cmd_forward(const Args& a);
 int cmd_evaluate(const Args& a);
+int cmd_tokenize(const Args& a);
 
 // bench targets
 int bench_gemm(const Args& a);
 int bench_conv2d(const Args& a);
+int bench_clip_image(const Args& a);
+int bench_clip_text(const Args& a);
 int bench_unet(const Args& a);
 // f32 | f16 | bf16 -> DType (error naming the option otherwise)
 DType parse_weight_dtype(const std::string& s, const std::string& option);

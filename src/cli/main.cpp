@@ -28,6 +28,8 @@ struct BenchTarget {
 const BenchTarget kBenchTargets[] = {
     {"unet", bench_unet,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--pifr] [--weights DIR]"},
+    {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
+    {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
     {"conv2d", bench_conv2d,
      "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]"},
@@ -46,6 +48,12 @@ const Command kCommands[] = {
      "  frame,p0..p161 in N) against raw glove readings (stabilised and normalised here). Directories: clips are\n"
      "  matched by file name and the sums pooled over all frames of the split. --json writes the results\n"
      "  (atomically). Default template: the shipped synthetic one (EGOPD_TEMPLATE overrides)."},
+    {"tokenize", cmd_tokenize,
+     "egopd tokenize TEXT... --tokenizer DIR [--pad-id N] [--json]\n"
+     "  Prints the 77 CLIP BPE ids of each TEXT (BOS, content, EOS, padding). DIR holds vocab.json + merges.txt\n"
+     "  (+ tokenizer_config.json, whose pad_token sets the padding id; default 49407), e.g. a model's tokenizer/.\n"
+     "  There is no built-in default tokenizer, so --tokenizer is required. Longer prompts are truncated to 77 ids\n"
+     "  (EOS kept last) with a warning on stderr."},
     {"bench", cmd_bench,
      "egopd bench TARGET [options] [--threads T] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
