@@ -16,6 +16,7 @@ CaseOutputs run_rng_case(const GoldenCase&);
 CaseOutputs run_scheduler_euler_case(const GoldenCase&);
 CaseOutputs run_scheduler_lcm_case(const GoldenCase&);
 CaseOutputs run_mask_encoder_case(const GoldenCase&);
+CaseOutputs run_svd_pipeline_case(const GoldenCase&);
 // -- end declarations --
 
 namespace {
@@ -38,6 +39,7 @@ const Entry kRunners[] = {
     {"scheduler_euler", run_scheduler_euler_case},
     {"scheduler_lcm", run_scheduler_lcm_case},
     {"mask_encoder", run_mask_encoder_case},
+    {"svd_pipeline", run_svd_pipeline_case},
     // -- end table --
 };
 }  // namespace
