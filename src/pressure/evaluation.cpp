@@ -95,6 +95,18 @@ TaxelSequence predictions_from_newtons(const HandTemplate& t, const TaxelSequenc
   return s;
 }
 
+TaxelSequence newtons_from_normalized(const std::vector<std::vector<double>>& p, int64_t first_frame) {
+  TaxelSequence s;
+  s.num_taxels = p.empty() ? 0 : int(p[0].size());
+  std::vector<double> row(s.num_taxels);
+  for (size_t t = 0; t < p.size(); ++t) {
+    if (int(p[t].size()) != s.num_taxels) throw Error("taxel frames of different lengths");
+    for (int m = 0; m < s.num_taxels; ++m) row[m] = kPressureMax * p[t][m];
+    s.add_row(first_frame + int64_t(t), row.data());
+  }
+  return s;
+}
+
 EvaluationReport evaluate_taxel_files(const std::string& pred, const std::string& gt, const HandTemplate& t,
                                       const EvaluationOptions& opt) {
   for (const auto& p : {pred, gt})

@@ -17,6 +17,10 @@ TaxelSequence ground_truth_from_newtons(const HandTemplate& t, const TaxelSequen
 // (the spec's `stabilize_predictions`, off by default).
 TaxelSequence predictions_from_newtons(const HandTemplate& t, const TaxelSequence& pred, bool stabilize);
 
+// Read-out results (normalised p̂ per frame, e.g. PressureRenderer::Frame::p) -> Newtons for the taxel CSV,
+// frames numbered first_frame, first_frame + 1, ...
+TaxelSequence newtons_from_normalized(const std::vector<std::vector<double>>& p, int64_t first_frame = 0);
+
 struct EvaluationOptions {
   bool stabilize_predictions = false;
 };

@@ -1,7 +1,5 @@
 #include "pressure/hand_template.h"
 
-#include <unistd.h>
-
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>

@@ -79,6 +79,14 @@ TEST(Evaluation, PredictionsAreScaledOnly) {
   for (int m : g) EXPECT_NEAR(s.row(0)[m], 303.0 / 6.0 / 200.0, 1e-15);
 }
 
+TEST(Evaluation, NewtonsFromNormalized) {
+  const TaxelSequence s = newtons_from_normalized({{0.5, 0.0, 1.25}, {0.025, 0.1, 0.0}}, 4);
+  EXPECT_EQ(s.num_taxels, 3);
+  EXPECT_EQ(s.frames, (std::vector<int64_t>{4, 5}));
+  EXPECT_EQ(s.values, (std::vector<double>{100, 0, 250, 5, 20, 0}));
+  EXPECT_THROW(newtons_from_normalized({{0.5}, {0.1, 0.2}}), Error);
+}
+
 TEST(Evaluation, PredictionEqualToStabilisedGroundTruthIsPerfect) {
   const HandTemplate t = HandTemplate::load(kShipped);
   // Readings 0 or within [5, 200] N, uniform within each finger-segment group (already stabilised).
