@@ -147,15 +147,18 @@ struct TemporalB : gemm_detail::BSource {
 namespace conv_detail {
 
 void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks) {
+  // Validity factors into a row part (ky) and a column part (kx): bit j of rows[ky] / cols[kx].
+  uint16_t rows[kMaxTaps] = {}, cols[kMaxTaps] = {};
+  int64_t oy = n0 / s.w, ox = n0 % s.w;
+  for (int j = 0; j < nr; ++j) {
+    for (int64_t ky = 0; ky < s.kh; ++ky)
+      if (oy + ky - s.ph >= 0 && oy + ky - s.ph < s.h) rows[ky] |= uint16_t(1u << j);
+    for (int64_t kx = 0; kx < s.kw; ++kx)
+      if (ox + kx - s.pw >= 0 && ox + kx - s.pw < s.w) cols[kx] |= uint16_t(1u << j);
+    if (++ox == s.w) ox = 0, ++oy;
+  }
   for (int64_t ky = 0; ky < s.kh; ++ky)
-    for (int64_t kx = 0; kx < s.kw; ++kx) {
-      uint16_t m = 0;
-      for (int j = 0; j < nr; ++j) {
-        const int64_t n = n0 + j, iy = n / s.w + ky - s.ph, ix = n % s.w + kx - s.pw;
-        if (iy >= 0 && iy < s.h && ix >= 0 && ix < s.w) m |= uint16_t(1u << j);
-      }
-      masks[ky * s.kw + kx] = m;
-    }
+    for (int64_t kx = 0; kx < s.kw; ++kx) masks[ky * s.kw + kx] = rows[ky] & cols[kx];
 }
 
 void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
