@@ -18,6 +18,8 @@ int bench_conv2d(const Args& a);
 int bench_clip_image(const Args& a);
 int bench_clip_text(const Args& a);
 int bench_unet(const Args& a);
+int bench_vae_encode(const Args& a);
+int bench_vae_decode(const Args& a);
 // f32 | f16 | bf16 -> DType (error naming the option otherwise)
 DType parse_weight_dtype(const std::string& s, const std::string& option);
 

@@ -1,0 +1,129 @@
+// `egopd bench vae_encode` / `egopd bench vae_decode`: the real-size SVD-xt temporal VAE (vae.md §1) with
+// deterministic random weights, on a clip of --frames frames at --size x --size pixels.
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "core/memory.h"
+#include "core/threading.h"
+#include "vae/temporal_vae.h"
+#include "vae/vae_random.h"
+
+namespace egopd {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct VaeBenchOptions {
+  DType dtype = DType::F16;
+  int64_t frames = 16, size = 256, chunk = 0, repeat = 1;
+  bool json = false;
+};
+
+VaeBenchOptions read_options(const Args& a, const std::string& target, bool decode) {
+  VaeBenchOptions o;
+  const std::string config = a.get("config", "svd-xt");
+  o.frames = a.get_int("frames", 16);
+  o.size = a.get_int("size", 256);
+  o.dtype = parse_weight_dtype(a.get("dtype", "f16"), "dtype");
+  if (decode) o.chunk = a.get_int("decode-chunk", 0);
+  o.repeat = a.get_int("repeat", 1);
+  o.json = a.flag("json");
+  a.finish();
+  if (config != "svd-xt") throw Error("bench " + target + ": --config must be svd-xt (got '" + config + "')");
+  if (o.frames < 1 || o.frames > 1024) throw Error("bench " + target + ": --frames must be between 1 and 1024");
+  if (o.size < 8 || o.size % 8 != 0) throw Error("bench " + target + ": --size must be a positive multiple of 8");
+  if (o.chunk < 0) throw Error("bench " + target + ": --decode-chunk must be positive (0 = all frames)");
+  if (o.repeat < 1 || o.repeat > 100) throw Error("bench " + target + ": --repeat must be between 1 and 100");
+  return o;
+}
+
+// The model folder lives only until the weights are mapped (the mapping keeps the data readable).
+struct ScratchModelDir {
+  fs::path path = fs::temp_directory_path() / ("egopd-bench-vae-" + std::to_string(::getpid()));
+  ~ScratchModelDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+Tensor pattern(const Shape& s, float amp) {  // deterministic values in [-amp, amp]
+  Tensor t(s);
+  for (int64_t i = 0; i < t.numel(); ++i) t[i] = amp * (float((i * 7919) % 2001) / 1000.0f - 1.0f);
+  return t;
+}
+
+// Median seconds of `repeat` calls (no warm-up: one full-size call is long enough to amortise first touches).
+template <class F>
+double median_seconds(int64_t repeat, F&& call) {
+  std::vector<double> t;
+  for (int64_t r = 0; r < repeat; ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    call();
+    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+void describe_output(const Tensor& y, BenchReport& r) {
+  double sq = 0;
+  bool finite = true;
+  for (int64_t i = 0; i < y.numel(); ++i) {
+    finite = finite && std::isfinite(y[i]);
+    sq += double(y[i]) * y[i];
+  }
+  r.extra["output_shape"] = y.shape().vec();
+  r.extra["output_finite"] = finite;
+  r.extra["output_rms"] = std::sqrt(sq / double(std::max<int64_t>(1, y.numel())));
+}
+
+int run_vae_bench(const Args& a, bool decode) {
+  const std::string target = decode ? "vae_decode" : "vae_encode";
+  const VaeBenchOptions o = read_options(a, target, decode);
+  const VaeConfig cfg = VaeConfig::svd_xt();
+  ScratchModelDir dir;
+  write_random_vae(dir.path.string(), cfg, o.dtype, 1234);
+  TemporalVAE vae(dir.path.string());
+  const int64_t latent = o.size / cfg.spatial_factor();
+
+  BenchReport r;
+  r.target = target;
+  r.threads = num_threads();
+  r.extra["config"] = "svd-xt";
+  r.extra["dtype"] = dtype_name(o.dtype);
+  r.extra["frames"] = o.frames;
+  r.extra["size"] = o.size;
+  r.extra["repeat"] = o.repeat;
+  r.extra["weights_bytes"] = vae.weight_bytes();
+  r.extra["rss_before_run_bytes"] = current_rss_bytes();
+  Tensor y;
+  if (decode) {
+    const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
+    const Tensor latents = pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f);
+    r.seconds = median_seconds(o.repeat, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
+    r.gflop = vae_decode_flop(cfg, o.frames, latent, latent) * 1e-9;
+    r.extra["decode_chunk"] = chunk;
+  } else {
+    const Tensor images = pattern(Shape{o.frames, cfg.in_channels, o.size, o.size}, 1.0f);
+    r.seconds = median_seconds(o.repeat, [&] { y = vae.encode_mean(images); });
+    r.gflop = vae_encode_flop(cfg, o.frames, o.size, o.size) * 1e-9;
+  }
+  describe_output(y, r);
+  r.extra["peak_rss_above_weights_bytes"] = int64_t(peak_rss_bytes()) - int64_t(vae.weight_bytes());
+  print_bench_report(r, o.json);
+  return 0;
+}
+
+}  // namespace
+
+int bench_vae_encode(const Args& a) { return run_vae_bench(a, false); }
+int bench_vae_decode(const Args& a) { return run_vae_bench(a, true); }
+
+}  // namespace egopd
