@@ -6,7 +6,9 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <memory>
 #include <cstdlib>
 #include <vector>
 
@@ -108,14 +110,18 @@ void run_gemm(const GemmJob& job) {
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
   float* b_shared = tl_b_pack.get(size_t(b_block) * (double_buffer ? 2 : 1) + 16);
   const Epilogue& ep = job.ep;
+  // Row chunks handed out dynamically (a thread slowed down by anything else on the machine takes fewer);
+  // at least ~4 per thread, at most one L2-sized A block. One counter per (jc, pc) iteration.
+  const int64_t chunk_rows =
+      split_m ? std::clamp(ceil_div(ceil_div(M, int64_t(threads) * 4), MR) * MR, int64_t(MR), kMcMax) : kMcMax;
+  const int64_t nchunks = ceil_div(M, chunk_rows);
+  std::unique_ptr<std::atomic<int64_t>[]> next_chunk(new std::atomic<int64_t>[size_t(njc * npc)]);
+  for (int64_t i = 0; i < njc * npc; ++i) next_chunk[i].store(0, std::memory_order_relaxed);
 
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     const int nth = omp_get_num_threads(), tid = omp_get_thread_num();
     float* a_pack = direct_a ? nullptr : tl_a_pack.get(size_t(kMcMax) * kc_blk + 16);
-    // This thread's rows (split_m) or all rows.
-    const int64_t m_lo = split_m ? mpanels * tid / nth * MR : 0;
-    const int64_t m_hi = split_m ? std::min(M, mpanels * (tid + 1) / nth * MR) : M;
     int64_t iter = 0;
     for (int64_t jc = 0; jc < njc; ++jc) {
       const int64_t p_begin = jc * jc_panels, p_end = std::min(npanels, p_begin + jc_panels);
@@ -144,8 +150,10 @@ void run_gemm(const GemmJob& job) {
         te.add_after = ep.accumulate && ep.act != Act::None;
         const float* bias_row = last && ep.bias && ep.bias_per_row ? ep.bias : nullptr;
         const float* bias_col = last && ep.bias && !ep.bias_per_row ? ep.bias : nullptr;
-        for (int64_t ic = m_lo; ic < m_hi; ic += kMcMax) {
-          const int64_t mc = std::min(kMcMax, m_hi - ic);
+        // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.
+        for (int64_t chunk = split_m ? next_chunk[iter].fetch_add(1) : 0; chunk < nchunks;
+             chunk = split_m ? next_chunk[iter].fetch_add(1) : chunk + 1) {
+          const int64_t ic = chunk * chunk_rows, mc = std::min(chunk_rows, M - ic);
           if (!direct_a)
             for (int64_t ir = 0; ir < mc; ir += MR)
               job.a->pack(ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
