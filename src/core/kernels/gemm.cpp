@@ -58,7 +58,7 @@ class Scratch {
   float* p_ = nullptr;
   size_t n_ = 0;
 };
-thread_local Scratch tl_a_pack, tl_b_pack;
+thread_local Scratch tl_pack;  // the calling thread's; team threads get slices (no allocation inside a region)
 
 int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
@@ -108,7 +108,10 @@ void run_gemm(const GemmJob& job) {
   const bool direct_a = job.a->direct != nullptr;
   const int64_t b_block = kc_blk * jc_panels * NR;  // floats of one B block
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
-  float* b_shared = tl_b_pack.get(size_t(b_block) * (double_buffer ? 2 : 1) + 16);
+  const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_blk + 15) / 16 * 16;  // floats of one thread's A block
+  const int64_t b_floats = b_block * (double_buffer ? 2 : 1);
+  float* const scratch = tl_pack.get(size_t(b_floats + int64_t(threads) * a_slice) + 16);
+  float* const b_shared = scratch;
   const Epilogue& ep = job.ep;
   // Row chunks handed out dynamically (a thread slowed down by anything else on the machine takes fewer);
   // at least ~4 per thread, at most one L2-sized A block. One counter per (jc, pc) iteration.
@@ -121,7 +124,7 @@ void run_gemm(const GemmJob& job) {
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     const int nth = omp_get_num_threads(), tid = omp_get_thread_num();
-    float* a_pack = direct_a ? nullptr : tl_a_pack.get(size_t(kMcMax) * kc_blk + 16);
+    float* const a_pack = direct_a ? nullptr : scratch + b_floats + tid * a_slice;
     int64_t iter = 0;
     for (int64_t jc = 0; jc < njc; ++jc) {
       const int64_t p_begin = jc * jc_panels, p_end = std::min(npanels, p_begin + jc_panels);
