@@ -52,6 +52,7 @@ static inline void score_block6(const float* qt, int64_t dh, const float* k, int
   const float *k0 = k, *k1 = k + k_ld, *k2 = k + 2 * k_ld, *k3 = k + 3 * k_ld, *k4 = k + 4 * k_ld, *k5 = k + 5 * k_ld;
   __m256 a00 = _mm256_setzero_ps(), a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00;
   __m256 a30 = a00, a31 = a00, a40 = a00, a41 = a00, a50 = a00, a51 = a00;
+#pragma GCC unroll 4
   for (int64_t d = 0; d < dh; ++d) {
     const __m256 q0 = _mm256_loadu_ps(qt + d * kBQ), q1 = _mm256_loadu_ps(qt + d * kBQ + 8);
     __m256 kb = _mm256_broadcast_ss(k0 + d);
@@ -135,6 +136,7 @@ static inline void pv_block(const float* pt, int64_t nk, const float* v, int64_t
   __m256 acc[R][NV];
   for (int r = 0; r < R; ++r)
     for (int c = 0; c < NV; ++c) acc[r][c] = _mm256_loadu_ps(o + r * o_ld + c * 8);
+#pragma GCC unroll 4
   for (int64_t j = 0; j < nk; ++j) {
     __m256 vv[NV];
     for (int c = 0; c < NV; ++c)
