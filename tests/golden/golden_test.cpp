@@ -20,10 +20,7 @@ namespace fs = std::filesystem;
 
 // Components whose runtime support has not landed yet. The test below fails if a component listed here gains a
 // runner (remove it from this list then) or if a case's component is neither runnable nor listed.
-const std::set<std::string> kPendingComponents = {
-    "unet", "unet_pifr", "vae_encode", "vae_decode", "clip_vision", "clip_text", "tokenizer", "image_preprocess",
-    "mask_encoder", "scheduler_euler", "scheduler_lcm", "svd_pipeline", "rng",
-};
+const std::set<std::string> kPendingComponents = {};
 
 std::vector<std::string> case_dirs() {
   std::vector<std::string> v;
