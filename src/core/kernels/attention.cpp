@@ -15,6 +15,7 @@ namespace egopd {
 namespace avx2 {  // attention_avx2.cpp
 int64_t attention_tile_workspace(int64_t dh);
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
+void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq);
 }  // namespace avx2
 
 namespace {
@@ -49,14 +50,21 @@ void attention_avx2(const AttentionArgs& a) {
   constexpr int64_t kTile = 64;
   const int64_t tiles = (a.lq + kTile - 1) / kTile;
   const int64_t units = a.batch * a.heads * tiles;
+  const bool prefetch = a.lq <= kTile && a.lk <= kTile;  // short sequences: latency-bound without it
   const bool par = !omp_in_parallel() && units > 1 && a.lq * a.lk * a.dh * a.batch * a.heads >= (1 << 16);
 #pragma omp parallel if (par)
   {
     const std::shared_ptr<float[]> work = alloc_floats(static_cast<size_t>(avx2::attention_tile_workspace(a.dh)));
-#pragma omp for schedule(dynamic, 1)
+    // Short units run in chunks so that the prefetched next unit is usually this thread's own.
+    const int64_t chunk = prefetch ? 16 : 1;
+#pragma omp for schedule(dynamic, chunk)
     for (int64_t u = 0; u < units; ++u) {
       const int64_t t = u % tiles, h = (u / tiles) % a.heads, b = u / (tiles * a.heads);
       const int64_t q0 = t * kTile;
+      if (prefetch && u + 1 < units) {  // single tile per (b, h): the next unit is the next head or batch
+        const int64_t hn = (u + 1) % a.heads, bn = (u + 1) / a.heads;
+        avx2::prefetch_unit(a, bn, hn, 0, a.lq);
+      }
       avx2::attention_tile(a, b, h, q0, std::min(kTile, a.lq - q0), work.get());
     }
   }

@@ -181,6 +181,22 @@ static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, i
 
 }  // namespace
 
+// Prefetches the q rows [q0, q0+nq) and all k, v rows of head h in batch b (the next unit's inputs): short
+// sequences with large row strides (temporal attention) are otherwise bound by memory latency.
+void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq) {
+  const int64_t bytes = a.dh * 4;
+  const char* q = reinterpret_cast<const char*>(a.q + b * a.q_bs + q0 * a.q_ld + h * a.dh);
+  const char* k = reinterpret_cast<const char*>(a.k + b * a.k_bs + h * a.dh);
+  const char* v = reinterpret_cast<const char*>(a.v + b * a.v_bs + h * a.dh);
+  for (int64_t i = 0; i < nq; ++i)
+    for (int64_t off = 0; off < bytes; off += 64) _mm_prefetch(q + i * a.q_ld * 4 + off, _MM_HINT_T0);
+  for (int64_t j = 0; j < a.lk; ++j)
+    for (int64_t off = 0; off < bytes; off += 64) {
+      _mm_prefetch(k + j * a.k_ld * 4 + off, _MM_HINT_T0);
+      _mm_prefetch(v + j * a.v_ld * 4 + off, _MM_HINT_T0);
+    }
+}
+
 int64_t attention_tile_workspace(int64_t dh) {
   return dh * kBQ + kBK * kBQ + kBQ * round_up8(dh) + 3 * kBQ;
 }
