@@ -1,8 +1,7 @@
 // `egopd tokenize TEXT... --tokenizer DIR`: the CLIP BPE ids of each prompt (BOS, content, EOS, padding to 77).
 #include <cstdio>
-#include <string>
-
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "cli/commands.h"
 #include "clip_text/clip_tokenizer.h"
@@ -12,8 +11,9 @@ namespace egopd {
 
 int cmd_tokenize(const Args& a) {
   if (!a.has("tokenizer"))
-    throw Error("tokenize: --tokenizer DIR is required (a folder with vocab.json and merges.txt, e.g. a model's "
-                "tokenizer/; there is no built-in default tokenizer)");
+    throw Error(
+        "tokenize: --tokenizer DIR is required (a folder with vocab.json and merges.txt, e.g. a model's "
+        "tokenizer/; there is no built-in default tokenizer)");
   const std::string dir = a.require("tokenizer");
   const bool json = a.flag("json");
   const bool has_pad = a.has("pad-id");

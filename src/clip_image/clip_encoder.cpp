@@ -30,8 +30,8 @@ ClipEncoderConfig read_clip_encoder_config(const Config& c, bool vision) {
   e.act = clip_activation(c, "quick_gelu");
   if (e.hidden <= 0 || e.intermediate <= 0 || e.layers < 0) c.fail("hidden_size", "sizes must be positive");
   if (e.heads <= 0 || e.hidden % e.heads != 0)
-    c.fail("num_attention_heads", std::to_string(e.heads) + " heads do not divide hidden_size " +
-                                      std::to_string(e.hidden));
+    c.fail("num_attention_heads",
+           std::to_string(e.heads) + " heads do not divide hidden_size " + std::to_string(e.hidden));
   return e;
 }
 

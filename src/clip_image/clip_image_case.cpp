@@ -19,8 +19,8 @@ CaseOutputs run_clip_vision_case(const GoldenCase& c) {
 }
 
 CaseOutputs run_image_preprocess_case(const GoldenCase& c) {
-  const auto norm = ClipImageNormalization::load(
-      (std::filesystem::path(c.model_dir()) / "preprocessor_config.json").string());
+  const auto norm =
+      ClipImageNormalization::load((std::filesystem::path(c.model_dir()) / "preprocessor_config.json").string());
   CaseOutputs out;
   out.tensors["pixel_values"] = svd_clip_preprocess(c.input("image"), norm, 224);
   return out;

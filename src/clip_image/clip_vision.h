@@ -52,7 +52,7 @@ class ClipVisionModelWithProjection {
   LayerNorm pre_layrnorm;     // (sic: the real key name)
   ClipEncoder encoder;
   LayerNorm post_layernorm;
-  Linear visual_projection;   // hidden -> projection_dim, no bias
+  Linear visual_projection;  // hidden -> projection_dim, no bias
 };
 
 }  // namespace egopd

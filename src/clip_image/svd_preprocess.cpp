@@ -62,7 +62,7 @@ void blur_axis(const double* src, double* dst, int64_t n, const std::vector<doub
 
 // Keys cubic convolution, A = -0.75 (PyTorch upsample_bicubic2d).
 constexpr double kCubicA = -0.75;
-double cubic_k1(double u) { return ((kCubicA + 2) * u - (kCubicA + 3)) * u * u + 1; }                  // |u| <= 1
+double cubic_k1(double u) { return ((kCubicA + 2) * u - (kCubicA + 3)) * u * u + 1; }                    // |u| <= 1
 double cubic_k2(double u) { return ((kCubicA * u - 5 * kCubicA) * u + 8 * kCubicA) * u - 4 * kCubicA; }  // 1<|u|<2
 
 // Taps and weights of every output index along one axis.

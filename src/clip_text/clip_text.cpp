@@ -42,8 +42,7 @@ ClipTextModel::ClipTextModel(const ClipTextConfig& config, std::shared_ptr<const
   encoder = ClipEncoder(tm.sub("encoder"), config_.encoder);
   final_layer_norm = LayerNorm(tm, "final_layer_norm", d, config_.encoder.eps);
   has_projection_ = root.has("text_projection.weight");
-  if (has_projection_)
-    text_projection = Linear(root, "text_projection", d, config_.projection_dim, /*has_bias=*/false);
+  if (has_projection_) text_projection = Linear(root, "text_projection", d, config_.projection_dim, /*has_bias=*/false);
 }
 
 int64_t ClipTextModel::pooling_position(const int64_t* ids, int64_t len) const {
@@ -59,8 +58,7 @@ int64_t ClipTextModel::pooling_position(const int64_t* ids, int64_t len) const {
 }
 
 ClipTextOutput ClipTextModel::forward(const IdTensor& input_ids) const {
-  if (input_ids.shape.ndim() != 2)
-    throw Error("text_encoder: input_ids must be [N, L], got " + input_ids.shape.str());
+  if (input_ids.shape.ndim() != 2) throw Error("text_encoder: input_ids must be [N, L], got " + input_ids.shape.str());
   const int64_t n = input_ids.shape[0], len = input_ids.shape[1], d = config_.encoder.hidden;
   if (len < 1 || len > config_.max_position_embeddings)
     throw Error("text_encoder: sequence length " + std::to_string(len) + " outside 1.." +

@@ -52,7 +52,7 @@ class ClipTextModel {
   ClipEncoder encoder;
   LayerNorm final_layer_norm;
   bool has_projection_ = false;
-  Linear text_projection;     // hidden -> projection_dim, no bias (CLIPTextModelWithProjection files only)
+  Linear text_projection;  // hidden -> projection_dim, no bias (CLIPTextModelWithProjection files only)
 };
 
 }  // namespace egopd

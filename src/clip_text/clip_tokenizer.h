@@ -10,10 +10,10 @@
 namespace egopd {
 
 struct TokenizedText {
-  std::vector<int64_t> ids;   // exactly context_length ids: BOS, content, EOS, then padding
-  int64_t length = 0;         // ids before padding (BOS and EOS included; context_length when truncated)
-  int64_t full_length = 0;    // BOS + all content ids + EOS, before truncation
-  bool truncated = false;     // full_length > context_length: only the first context_length-2 content ids kept
+  std::vector<int64_t> ids;  // exactly context_length ids: BOS, content, EOS, then padding
+  int64_t length = 0;        // ids before padding (BOS and EOS included; context_length when truncated)
+  int64_t full_length = 0;   // BOS + all content ids + EOS, before truncation
+  bool truncated = false;    // full_length > context_length: only the first context_length-2 content ids kept
 };
 
 class ClipTokenizer {

@@ -1,6 +1,7 @@
 // CLIP towers on tiny random models written here, against a double-precision forward written in this test (quick_gelu,
 // legacy and explicit EOS pooling, text projection, nested CLIPConfig), and strict weight loading errors.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -8,7 +9,6 @@
 #include <map>
 #include <random>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "clip_image/clip_vision.h"
@@ -61,7 +61,9 @@ Vec layer_norm(const Vec& x, int64_t rows, const Params& P, const std::string& n
   return y;
 }
 
-double activation(double x, bool quick) { return quick ? x / (1 + std::exp(-1.702 * x)) : 0.5 * x * (1 + std::erf(x / std::sqrt(2.0))); }
+double activation(double x, bool quick) {
+  return quick ? x / (1 + std::exp(-1.702 * x)) : 0.5 * x * (1 + std::erf(x / std::sqrt(2.0)));
+}
 
 // One sequence h [len, d] through encoder.layers.N (clip.md §1).
 void reference_layer(Vec& h, int64_t len, int64_t d, int64_t heads, bool quick, bool causal, const Params& P,
@@ -84,7 +86,8 @@ void reference_layer(Vec& h, int64_t len, int64_t d, int64_t heads, bool quick, 
       double z = 0;
       for (auto& e : s) z += (e = (e <= -1e299 ? 0.0 : std::exp(e - mx)));
       for (int64_t j = 0; j < len; ++j)
-        for (int64_t c = 0; c < dh; ++c) attn[size_t(i * d + hd * dh + c)] += s[size_t(j)] / z * v[size_t(j * d + hd * dh + c)];
+        for (int64_t c = 0; c < dh; ++c)
+          attn[size_t(i * d + hd * dh + c)] += s[size_t(j)] / z * v[size_t(j * d + hd * dh + c)];
     }
   const Vec o = linear(attn, len, P, pre + "self_attn.out_proj");
   for (size_t i = 0; i < h.size(); ++i) h[i] += o[i];
@@ -166,8 +169,10 @@ class TinyText : public TinyModelDir {
   }
   std::string config(const std::string& act, int64_t eos) const {
     return R"({"hidden_size": 16, "intermediate_size": 40, "num_attention_heads": 2, "num_hidden_layers": 2,
-      "vocab_size": 50, "max_position_embeddings": 9, "hidden_act": ")" + act + R"(", "layer_norm_eps": 1e-05,
-      "eos_token_id": )" + std::to_string(eos) + R"(, "projection_dim": 6})";
+      "vocab_size": 50, "max_position_embeddings": 9, "hidden_act": ")" +
+           act + R"(", "layer_norm_eps": 1e-05,
+      "eos_token_id": )" +
+           std::to_string(eos) + R"(, "projection_dim": 6})";
   }
   // last_hidden_state [len, d] of one sequence.
   Vec reference(const std::vector<int64_t>& ids, bool quick) const {
@@ -175,10 +180,12 @@ class TinyText : public TinyModelDir {
     Vec h(static_cast<size_t>(len * d));
     for (int64_t i = 0; i < len; ++i)
       for (int64_t c = 0; c < d; ++c)
-        h[size_t(i * d + c)] = double(params.at("text_model.embeddings.token_embedding.weight").values[size_t(ids[size_t(i)] * d + c)]) +
-                               params.at("text_model.embeddings.position_embedding.weight").values[size_t(i * d + c)];
+        h[size_t(i * d + c)] =
+            double(params.at("text_model.embeddings.token_embedding.weight").values[size_t(ids[size_t(i)] * d + c)]) +
+            params.at("text_model.embeddings.position_embedding.weight").values[size_t(i * d + c)];
     for (int64_t l = 0; l < layers; ++l)
-      reference_layer(h, len, d, heads, quick, /*causal=*/true, params, "text_model.encoder.layers." + std::to_string(l) + ".");
+      reference_layer(h, len, d, heads, quick, /*causal=*/true, params,
+                      "text_model.encoder.layers." + std::to_string(l) + ".");
     return layer_norm(h, len, params, "text_model.final_layer_norm");
   }
 };
@@ -308,15 +315,16 @@ TEST_F(TinyVision, NestedClipConfigMatchesReference) {
                 acc += double(w.values[size_t(((o * 3 + c) * patch + i) * patch + j)]) *
                        px[((b * 3 + c) * image + py * patch + i) * image + pxi * patch + j];
         }
-        h[size_t(t * d + o)] = acc + params.at("vision_model.embeddings.position_embedding.weight").values[size_t(t * d + o)];
+        h[size_t(t * d + o)] =
+            acc + params.at("vision_model.embeddings.position_embedding.weight").values[size_t(t * d + o)];
       }
     h = layer_norm(h, seq, params, "vision_model.pre_layrnorm");
     reference_layer(h, seq, d, heads, /*quick=*/true, /*causal=*/false, params, "vision_model.encoder.layers.0.");
     expect_close(out.last_hidden_state.data() + b * seq * d, h, size_t(seq * d), 2e-5, "last_hidden_state");
     const Vec pooled = layer_norm(Vec(h.begin(), h.begin() + d), 1, params, "vision_model.post_layernorm");
     expect_close(out.pooler_output.data() + b * d, pooled, size_t(d), 2e-5, "pooler_output");
-    expect_close(out.image_embeds.data() + b * proj, linear(pooled, 1, params, "visual_projection", false), size_t(proj),
-                 2e-5, "image_embeds");
+    expect_close(out.image_embeds.data() + b * proj, linear(pooled, 1, params, "visual_projection", false),
+                 size_t(proj), 2e-5, "image_embeds");
   }
   EXPECT_THROW(model.forward(Tensor::zeros({1, 3, 14, 14})), Error);  // position embeddings fix the image size
 }

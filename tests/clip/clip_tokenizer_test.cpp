@@ -3,11 +3,11 @@
 #include "clip_text/clip_tokenizer.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "core/error.h"
@@ -41,10 +41,10 @@ TEST(ClipTokenizer, WorkedExamplesOfTheSpec) {
       "This video shows the action of picking up a CocaCola. The weight of the CocaCola is 355g, and its surface "
       "material is aluminum. The person performing the action is male, 25 years of age, weighing 74kg and having 25% "
       "body fat";
-  const Ids expected = {49406, 589,  1455, 2665, 518,  1816, 539,  9545, 705,  320,  31248, 269,  518,  3868,
-                        539,   518,  31248, 533, 274,  276,  276,  326,  267,  537,  902,   7744, 7118, 533,
-                        15251, 269,  518,  2533, 5170, 518,  1816, 533,  2801, 267,  273,   276,  1151, 539,
-                        805,   267,  24455, 278, 275,  7817, 537,  1977, 273,  276,  260,   1774, 5484, 49407};
+  const Ids expected = {49406, 589, 1455,  2665, 518,  1816, 539,  9545, 705,  320, 31248, 269,  518,  3868,
+                        539,   518, 31248, 533,  274,  276,  276,  326,  267,  537, 902,   7744, 7118, 533,
+                        15251, 269, 518,   2533, 5170, 518,  1816, 533,  2801, 267, 273,   276,  1151, 539,
+                        805,   267, 24455, 278,  275,  7817, 537,  1977, 273,  276, 260,   1774, 5484, 49407};
   const TokenizedText t = clip().encode(prompt, 0);
   ASSERT_EQ(t.ids.size(), 77u);
   EXPECT_EQ(t.length, 56);
@@ -76,7 +76,7 @@ TEST(ClipTokenizer, NormalisationCollapsesWhitespaceAndLowerCases) {
   EXPECT_EQ(ClipTokenizer::normalize("CAF\u00c9"), "caf\u00e9");
   EXPECT_EQ(ClipTokenizer::normalize("\u0130"), "i\u0307");
   EXPECT_EQ(ClipTokenizer::normalize("\u039f\u0394\u039f\u03a3"), "\u03bf\u03b4\u03bf\u03c2");  // ΟΔΟΣ -> οδος
-  EXPECT_EQ(ClipTokenizer::normalize("\u03a3A"), "\u03c3a");                                   // not final
+  EXPECT_EQ(ClipTokenizer::normalize("\u03a3A"), "\u03c3a");                                    // not final
 }
 
 TEST(ClipTokenizer, AccentsAreTheSameComposedOrDecomposed) {
@@ -138,9 +138,9 @@ TEST(ClipTokenizer, LongTextIsTruncatedWithEosLast) {
 // A hand-made vocabulary to pin the merge rules.
 class TinyTokenizer : public ::testing::Test {
  protected:
-  std::unordered_map<std::string, int64_t> vocab{{"a", 0},         {"b", 1},       {"a</w>", 2},   {"b</w>", 3},
-                                                {"ab", 4},        {"ab</w>", 5},  {"abab</w>", 6}, {"<|startoftext|>", 7},
-                                                {"<|endoftext|>", 8}};
+  std::unordered_map<std::string, int64_t> vocab{
+      {"a", 0},      {"b", 1},        {"a</w>", 2},           {"b</w>", 3},        {"ab", 4},
+      {"ab</w>", 5}, {"abab</w>", 6}, {"<|startoftext|>", 7}, {"<|endoftext|>", 8}};
 };
 
 TEST_F(TinyTokenizer, LowestRankFirstAndEveryOccurrence) {

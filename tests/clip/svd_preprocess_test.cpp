@@ -41,7 +41,8 @@ std::vector<double> reference_bicubic(const std::vector<double>& x, int64_t plan
         double acc = 0;
         for (int64_t ky = iy - 1; ky <= iy + 2; ++ky)
           for (int64_t kx = ix - 1; kx <= ix + 2; ++kx) {
-            const int64_t cy = std::min(std::max<int64_t>(ky, 0), h - 1), cx = std::min(std::max<int64_t>(kx, 0), w - 1);
+            const int64_t cy = std::min(std::max<int64_t>(ky, 0), h - 1),
+                          cx = std::min(std::max<int64_t>(kx, 0), w - 1);
             acc += cubic(fy - double(ky)) * cubic(fx - double(kx)) * x[size_t((p * h + cy) * w + cx)];
           }
         out[size_t((p * oh + dy) * ow + dx)] = acc;
@@ -61,7 +62,8 @@ std::vector<double> reference_blur(const std::vector<double>& x, int64_t planes,
         double acc = 0;
         for (int64_t a = -ry; a <= ry; ++a)
           for (int64_t b = -rx; b <= rx; ++b)
-            acc += ky[size_t(a + ry)] * kx[size_t(b + rx)] * x[size_t((p * h + reflect(i + a, h)) * w + reflect(j + b, w))];
+            acc += ky[size_t(a + ry)] * kx[size_t(b + rx)] *
+                   x[size_t((p * h + reflect(i + a, h)) * w + reflect(j + b, w))];
         out[size_t((p * h + i) * w + j)] = acc;
       }
   return out;
@@ -115,11 +117,11 @@ TEST(SvdPreprocess, BicubicMatchesSixteenTapReference) {
   struct Case {
     int64_t h, w, oh, ow;
   };
-  for (const Case c : {Case{192, 256, 224, 224}, Case{256, 256, 224, 224}, Case{37, 53, 224, 224},
-                       Case{5, 3, 9, 11}, Case{1, 7, 4, 3}, Case{6, 6, 1, 1}}) {
+  for (const Case c : {Case{192, 256, 224, 224}, Case{256, 256, 224, 224}, Case{37, 53, 224, 224}, Case{5, 3, 9, 11},
+                       Case{1, 7, 4, 3}, Case{6, 6, 1, 1}}) {
     const std::vector<double> x = random_image(3 * c.h * c.w, 7);
-    const double diff = max_abs_diff(bicubic_align_corners(x, 3, c.h, c.w, c.oh, c.ow),
-                                     reference_bicubic(x, 3, c.h, c.w, c.oh, c.ow));
+    const double diff =
+        max_abs_diff(bicubic_align_corners(x, 3, c.h, c.w, c.oh, c.ow), reference_bicubic(x, 3, c.h, c.w, c.oh, c.ow));
     EXPECT_LT(diff, 1e-13) << c.h << "x" << c.w << " -> " << c.oh << "x" << c.ow;
   }
 }
@@ -160,8 +162,8 @@ TEST(SvdPreprocess, FullPathMatchesReferenceAt256) {
   for (int64_t i = 0; i < img.numel(); ++i) img[i] = float(v[size_t(i)]);
   const std::vector<double> src(img.data(), img.data() + img.numel());
   const std::vector<double> ref = reference_bicubic(
-      reference_blur(src, 3, h, w, antialias_kernel(double(w) / 224), antialias_kernel(double(h) / 224)), 3, h, w,
-      224, 224);
+      reference_blur(src, 3, h, w, antialias_kernel(double(w) / 224), antialias_kernel(double(h) / 224)), 3, h, w, 224,
+      224);
   const ClipImageNormalization norm;
   const Tensor out = svd_clip_preprocess(img, norm);
   double worst = 0;
