@@ -142,7 +142,7 @@ void BM_Geglu(benchmark::State& state) {
   });
   egopd::set_force_portable(false);
 }
-BENCHMARK(BM_Geglu)->ArgNames({"rows", "d", "avx2"})->Args({16384, 1280, 1})->Args({16384, 1280, 0})
+BENCHMARK(BM_Geglu)->ArgNames({"rows", "d", "avx2"})->Args({16384, 1280, 1})->Args({16384, 1280, 0})->Args({128, 1280, 1})
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 
 // Args: batch, frames, c, s, groups, path (GroupNorm + fused SiLU, in place).

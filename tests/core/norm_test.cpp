@@ -106,6 +106,11 @@ TEST(GroupNorm, InPlaceAndLargeVideo) {
   }
 }
 
+TEST(GroupNorm, RejectsChannelsNotDivisibleByGroups) {
+  std::vector<float> x(10, 1.0f);
+  EXPECT_THROW(group_norm(x.data(), x.data(), 1, 1, 10, 1, 4, nullptr, nullptr, 1e-5f, false), std::exception);
+}
+
 void check_layer_norm(int64_t rows, int64_t c, bool affine, bool in_place, float mean) {
   const std::vector<float> x = normal_values(rows * c, mean, 1.5f, 21 + static_cast<uint32_t>(c));
   const std::vector<float> gamma = normal_values(c, 1.0f, 0.5f, 5), beta = normal_values(c, 0.0f, 0.5f, 6);

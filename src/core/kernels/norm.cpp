@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "core/cpu.h"
+#include "core/error.h"
 
 namespace egopd {
 
@@ -72,6 +74,8 @@ void softmax_row_portable(float* p, int64_t cols) {
 
 void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t c, int64_t s, int64_t groups,
                 const float* gamma, const float* beta, float eps, bool silu) {
+  EGOPD_CHECK(groups > 0 && c % groups == 0, "group_norm: " + std::to_string(c) + " channels in " +
+                                                  std::to_string(groups) + " groups");
   const int64_t cg = c / groups;
   const int64_t units = batch * groups;
   const bool vec = use_avx2();
