@@ -104,6 +104,8 @@ TEST(Attention, SingleQuerySingleKey) { check_both_paths({1, 1, 1, 1, 4}); }
 TEST(Attention, CrossAttentionLqNotLk) { check_both_paths({1, 2, 100, 130, 64}); }
 TEST(Attention, TileTailsAndOddHeadDim) { check_both_paths({2, 2, 65, 49, 20}); }
 TEST(Attention, HeadDimNotMultipleOf8) { check_both_paths({1, 3, 17, 23, 12}); }
+TEST(Attention, HeadDimOne) { check_both_paths({2, 3, 9, 10, 1}); }
+TEST(Attention, HeadDim128) { check_both_paths({1, 2, 70, 33, 128}); }
 TEST(Attention, VisionHeadDim80) { check_both_paths({1, 2, 257, 257, 80}); }
 TEST(Attention, CausalText) { check_both_paths({1, 2, 77, 77, 64, true}); }
 TEST(Attention, CausalAcrossTiles) { check_both_paths({2, 1, 150, 150, 8, true}); }
