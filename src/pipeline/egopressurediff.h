@@ -1,0 +1,105 @@
+#pragma once
+// The EgoPressureDiff inference pipeline (egopressurediff.md): RGB frames -> per-frame VAE latents, hint masks ->
+// mask features, prototype heatmap -> CLIP image token, prompt -> CLIP text tokens (PIFR), sampler loop over the
+// U-Net, temporal VAE decode, heatmap post-processing -> 162 taxel pressures.
+// Everything that does not depend on the text is computed once in encode() and shared by prompt variants
+// (counterfactual prompting, §9).
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "clip_image/clip_vision.h"
+#include "clip_image/svd_preprocess.h"
+#include "clip_text/clip_text.h"
+#include "clip_text/clip_tokenizer.h"
+#include "core/timing.h"
+#include "mask_encoder/mask_encoder.h"
+#include "pipeline/prompt.h"
+#include "pressure/pressure.h"
+#include "scheduler/sampler.h"
+#include "unet3d/unet.h"
+#include "vae/temporal_vae.h"
+
+namespace egopd {
+
+// model_index.json "egopd_defaults" (every key optional; egopressurediff.md §8).
+struct ModelDefaults {
+  int steps = 0;  // 0: the sampler's own default (Euler 25, AnimateLCM 8)
+  int64_t frames = 16, resolution = 256;
+  float fps = 5, motion_bucket_id = 127, noise_aug_strength = 0.02f;
+  float min_guidance = 1, max_guidance = 1;
+  std::string prompt_template;  // empty: the paper's template with clause dropping
+};
+
+struct PipelineSettings {
+  int64_t frames = 16;
+  std::string sampler;  // "" = the model's scheduler config; "euler" or "lcm" to override
+  int steps = 0;        // 0 = default (model defaults, else sampler default)
+  uint64_t seed = 0;
+  float min_guidance = 1, max_guidance = 1;
+  float fps = 5, motion_bucket_id = 127, noise_aug_strength = 0.02f;
+  int64_t decode_chunk = 0;  // 0 = all frames
+};
+
+// step (1-based), steps, seconds of that step
+using StepCallback = std::function<void(int, int, double)>;
+
+class EgoPressureDiffPipeline {
+ public:
+  // Loads every component of an EgoPressureDiff model directory (weights.md §1) for S x S frames. text_encoder/,
+  // tokenizer/ and mask_encoder/ are optional (without them only no-text mode / no masks are available).
+  EgoPressureDiffPipeline(const std::string& model_dir, int64_t size, const std::string& template_path = "");
+
+  const ModelDefaults& defaults() const { return defaults_; }
+  int64_t size() const { return size_; }
+  bool has_text_encoder() const { return text_ != nullptr; }
+  bool has_mask_encoder() const { return masks_ != nullptr; }
+  const HandTemplate& hand_template() const { return template_; }
+  const PressureRenderer& renderer() const { return *renderer_; }
+  // settings filled from the model defaults where the caller left them at their defaults
+  PipelineSettings settings_from_defaults() const;
+
+  struct Shared {
+    int64_t frames = 0;
+    Tensor rgb_latents;    // [1, F, 4, h, w]  (unscaled VAE means)
+    Tensor mask_features;  // [F, 8, h, w]     (empty without masks)
+    Tensor prototype;      // [1, 1, D]        CLIP image token of the prototype heatmap
+    Tensor init_noise;     // [1, F, 4, h, w]  N(0,1), torch-compatible draw from the seed
+    std::vector<Tensor> step_noises;  // one per sampler step that needs noise (AnimateLCM), else empty tensors
+    std::unique_ptr<Sampler> sampler;
+  };
+  // frames [F, 3, S, S] in [-1, 1]; masks [F, 1, S, S] in {0, 1} or null.
+  Shared encode(const Tensor& frames, const Tensor* masks, const PipelineSettings& s, StageTimes* times) const;
+
+  // Prompt for metadata fields (nullopt: no-text mode); uses the model's template if it has one.
+  std::optional<std::string> prompt_for(const PromptFields& fields) const;
+  // [1, 77, text_dim] text tokens, or an empty tensor for no-text mode. *truncated is set when the prompt was
+  // longer than 77 tokens.
+  Tensor encode_text(const std::optional<std::string>& prompt, bool* truncated, StageTimes* times) const;
+
+  struct Result {
+    Tensor latents;   // [1, F, 4, h, w]
+    Tensor decoded;   // [F, 3, S, S]
+    std::vector<PressureRenderer::Frame> frames;  // heatmaps and normalised taxels per frame
+  };
+  Result run(const Shared& shared, const Tensor& text, const PipelineSettings& s, const StepCallback& on_step,
+             StageTimes* times);
+
+ private:
+  std::string dir_;
+  int64_t size_;
+  ModelDefaults defaults_;
+  HandTemplate template_;
+  std::unique_ptr<PressureRenderer> renderer_;
+  std::unique_ptr<UNetSpatioTemporal> unet_;
+  std::unique_ptr<TemporalVAE> vae_;
+  std::unique_ptr<ClipVisionModelWithProjection> image_encoder_;
+  ClipImageNormalization clip_norm_;
+  std::unique_ptr<ClipTextModel> text_;
+  std::unique_ptr<ClipTokenizer> tokenizer_;
+  std::unique_ptr<MaskEncoder> masks_;
+};
+
+}  // namespace egopd
