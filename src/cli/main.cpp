@@ -52,11 +52,12 @@ const Command kCommands[] = {
      "  matched by file name and the sums pooled over all frames of the split. --json writes the results\n"
      "  (atomically). Default template: the shipped synthetic one (EGOPD_TEMPLATE overrides)."},
     {"tokenize", cmd_tokenize,
-     "egopd tokenize TEXT... --tokenizer DIR [--pad-id N] [--json]\n"
+     "egopd tokenize TEXT... [--tokenizer DIR] [--pad-id N] [--json]\n"
      "  Prints the 77 CLIP BPE ids of each TEXT (BOS, content, EOS, padding). DIR holds vocab.json + merges.txt\n"
      "  (+ tokenizer_config.json, whose pad_token sets the padding id; default 49407), e.g. a model's tokenizer/.\n"
-     "  There is no built-in default tokenizer, so --tokenizer is required. Longer prompts are truncated to 77 ids\n"
-     "  (EOS kept last) with a warning on stderr."},
+     "  Default DIR: the CLIP tokenizer shipped with egopd (EGOPD_TOKENIZER_DIR, else share/egopd/tokenizer next\n"
+     "  to the executable, else the source tree's data/tokenizer). Longer prompts are truncated to 77 ids (EOS kept\n"
+     "  last) with a warning on stderr."},
     {"bench", cmd_bench,
      "egopd bench TARGET [options] [--threads T] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"

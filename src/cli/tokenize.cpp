@@ -1,4 +1,4 @@
-// `egopd tokenize TEXT... --tokenizer DIR`: the CLIP BPE ids of each prompt (BOS, content, EOS, padding to 77).
+// `egopd tokenize TEXT... [--tokenizer DIR]`: the CLIP BPE ids of each prompt (BOS, content, EOS, padding to 77).
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -6,15 +6,12 @@
 #include "cli/commands.h"
 #include "clip_text/clip_tokenizer.h"
 #include "core/error.h"
+#include "pipeline/synthetic_model.h"
 
 namespace egopd {
 
 int cmd_tokenize(const Args& a) {
-  if (!a.has("tokenizer"))
-    throw Error(
-        "tokenize: --tokenizer DIR is required (a folder with vocab.json and merges.txt, e.g. a model's "
-        "tokenizer/; there is no built-in default tokenizer)");
-  const std::string dir = a.require("tokenizer");
+  const std::string dir = a.has("tokenizer") ? a.require("tokenizer") : shipped_tokenizer_dir();
   const bool json = a.flag("json");
   const bool has_pad = a.has("pad-id");
   const int64_t pad_override = a.get_int("pad-id", 0);
