@@ -14,22 +14,34 @@ static inline __m256 horner(__m256 x, const float* c, int n) {  // c[0] x^(n-1) 
   return p;
 }
 
-// exp(x). Results below 2^-126 flush to 0; above FLT_MAX give +inf; exp(-inf) = 0.
-static inline __m256 exp_ps(__m256 x) {
+// exp(x) for x in [-87.34, 88.03] (no range handling): Chebyshev polynomial after x = n ln2 + r.
+static inline __m256 exp_core_ps(__m256 x) {
   static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
                                  5.000000000e-01f};  // (exp(r) - 1 - r) / r^2 on [-ln2/2, ln2/2]
-  const __m256 lo_limit = _mm256_set1_ps(-87.33654f), hi_limit = _mm256_set1_ps(88.72283f);
-  const __m256 xc = _mm256_min_ps(_mm256_max_ps(x, lo_limit), _mm256_set1_ps(88.02969f));  // keeps n <= 127
-  const __m256 n = _mm256_round_ps(_mm256_mul_ps(xc, _mm256_set1_ps(1.44269504088896341f)),
+  const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)),
                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(6.931471825e-01f), xc);  // x - n ln2, ln2 split hi + lo
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(6.931471825e-01f), x);  // x - n ln2, ln2 split hi + lo
   r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-1.904654212e-09f), r);
   const __m256 p = horner(r, kPoly, 5);
   const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(r, r), p, r), _mm256_set1_ps(1.0f));
   const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
-  __m256 res = _mm256_mul_ps(y, _mm256_castsi256_ps(e));
+  return _mm256_mul_ps(y, _mm256_castsi256_ps(e));
+}
+
+// exp(x). Results below 2^-126 flush to 0; above FLT_MAX give +inf; exp(-inf) = 0.
+static inline __m256 exp_ps(__m256 x) {
+  const __m256 lo_limit = _mm256_set1_ps(-87.33654f), hi_limit = _mm256_set1_ps(88.72283f);
+  const __m256 xc = _mm256_min_ps(_mm256_max_ps(x, lo_limit), _mm256_set1_ps(88.02969f));  // keeps n <= 127
+  __m256 res = exp_core_ps(xc);
   res = _mm256_andnot_ps(_mm256_cmp_ps(x, lo_limit, _CMP_LT_OQ), res);
   return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GT_OQ));
+}
+
+// exp(x) for x <= 0 (not NaN); results below 2^-126 flush to 0.
+static inline __m256 exp_nonpositive_ps(__m256 x) {
+  const __m256 lo_limit = _mm256_set1_ps(-87.33654f);
+  const __m256 res = exp_core_ps(_mm256_max_ps(x, lo_limit));
+  return _mm256_andnot_ps(_mm256_cmp_ps(x, lo_limit, _CMP_LT_OQ), res);
 }
 
 // 2^x (same limits as exp_ps): attention folds log2(e) into its query scale and calls this directly.
@@ -48,23 +60,29 @@ static inline __m256 exp2_ps(__m256 x) {
   return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GE_OQ));
 }
 
-// erf(a) and erfc(a) for a = |z| >= 0, each accurate relative to its own value.
-static inline void erf_erfc_abs(__m256 a, __m256* erf_a, __m256* erfc_a) {
-  static const float kSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,
-                                  1.128359437e-01f, -3.761262596e-01f, 1.128379107e+00f};  // erf(a)/a in a^2, a<1
-  static const float kTail[9] = {-4.387202486e-02f, 2.385862917e-01f, -4.306684136e-01f,
-                                 2.423289418e-01f,  -1.475901343e-02f, 2.010129243e-01f,
-                                 2.430254966e-01f,  2.824241221e-01f,  2.820825875e-01f};  // erfc(a) e^(a^2)/t
-  const __m256 one = _mm256_set1_ps(1.0f);
-  const __m256 a2 = _mm256_mul_ps(a, a);
-  const __m256 small = _mm256_mul_ps(a, horner(a2, kSmall, 7));  // erf(a), a < 1
-  // erfc(a) = t R(t) exp(-a^2), t = 2/(2+a), a >= 1. a^2 = hi + lo exactly, exp(-hi-lo) ~ exp(-hi)(1-lo).
+static const float kErfSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,
+                                   1.128359437e-01f, -3.761262596e-01f, 1.128379107e+00f};  // erf(a)/a in a^2, a<1
+static const float kErfcTail[9] = {-4.387202486e-02f, 2.385862917e-01f, -4.306684136e-01f,
+                                   2.423289418e-01f,  -1.475901343e-02f, 2.010129243e-01f,
+                                   2.430254966e-01f,  2.824241221e-01f,  2.820825875e-01f};  // erfc(a) e^(a^2)/t
+
+// erfc(a) for a >= 1 (any a >= 0 gives a finite value): t R(t) exp(-a^2), t = 2/(2+a);
+// a^2 = hi + lo exactly and exp(-hi-lo) ~ exp(-hi)(1-lo).
+static inline __m256 erfc_tail_ps(__m256 a) {
   const __m256 ac = _mm256_min_ps(a, _mm256_set1_ps(10.0f));
   const __m256 t = _mm256_div_ps(_mm256_set1_ps(2.0f), _mm256_add_ps(_mm256_set1_ps(2.0f), ac));
   const __m256 hi = _mm256_mul_ps(ac, ac);
   const __m256 lo = _mm256_fmsub_ps(ac, ac, hi);
-  const __m256 ex = _mm256_mul_ps(exp_ps(_mm256_sub_ps(_mm256_setzero_ps(), hi)), _mm256_sub_ps(one, lo));
-  const __m256 tail = _mm256_mul_ps(_mm256_mul_ps(t, horner(t, kTail, 9)), ex);  // erfc(a), a >= 1
+  const __m256 e = exp_nonpositive_ps(_mm256_sub_ps(_mm256_setzero_ps(), hi));
+  const __m256 ex = _mm256_fnmadd_ps(e, lo, e);
+  return _mm256_mul_ps(_mm256_mul_ps(t, horner(t, kErfcTail, 9)), ex);
+}
+
+// erf(a) and erfc(a) for a = |z| >= 0, each accurate relative to its own value.
+static inline void erf_erfc_abs(__m256 a, __m256* erf_a, __m256* erfc_a) {
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256 small = _mm256_mul_ps(a, horner(_mm256_mul_ps(a, a), kErfSmall, 7));  // erf(a), a < 1
+  const __m256 tail = erfc_tail_ps(a);                                                 // erfc(a), a >= 1
   const __m256 is_small = _mm256_cmp_ps(a, one, _CMP_LT_OQ);
   *erf_a = _mm256_blendv_ps(_mm256_sub_ps(one, tail), small, is_small);
   *erfc_a = _mm256_blendv_ps(tail, _mm256_sub_ps(one, small), is_small);
@@ -81,10 +99,12 @@ static inline __m256 erf_ps(__m256 z) {
 
 // 1 + erf(z) without cancellation for negative z (= erfc(|z|) there).
 static inline __m256 erf1p_ps(__m256 z) {
-  __m256 e, c;
-  erf_erfc_abs(abs_ps(z), &e, &c);
-  const __m256 pos = _mm256_add_ps(_mm256_set1_ps(1.0f), e);
-  return _mm256_blendv_ps(pos, c, z);  // blendv selects on the sign bit of z
+  const __m256 one = _mm256_set1_ps(1.0f);
+  const __m256 a = abs_ps(z);
+  const __m256 small1p = _mm256_fmadd_ps(z, horner(_mm256_mul_ps(z, z), kErfSmall, 7), one);  // |z| < 1
+  const __m256 tail = erfc_tail_ps(a);
+  const __m256 tail1p = _mm256_blendv_ps(_mm256_sub_ps(_mm256_set1_ps(2.0f), tail), tail, z);  // on z's sign
+  return _mm256_blendv_ps(tail1p, small1p, _mm256_cmp_ps(a, one, _CMP_LT_OQ));
 }
 
 // GELU(x) = 0.5 x (1 + erf(x / sqrt 2)), exact erf form.
