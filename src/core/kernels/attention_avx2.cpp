@@ -249,8 +249,9 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
       _mm256_storeu_ps(l + i, _mm256_fmadd_ps(_mm256_loadu_ps(l + i), cr, sum));
       _mm256_storeu_ps(corr + i, cr);
     }
-    if (k0 > 0) {  // rescale the accumulators to the new running max
+    if (k0 > 0) {  // rescale the accumulators of rows whose running max rose
       for (int64_t i = 0; i < nq; ++i) {
+        if (corr[i] == 1.0f) continue;
         const __m256 cr = _mm256_broadcast_ss(corr + i);
         float* orow = o + i * dhp;
         for (int64_t d = 0; d < dhp; d += 8) _mm256_storeu_ps(orow + d, _mm256_mul_ps(_mm256_loadu_ps(orow + d), cr));
