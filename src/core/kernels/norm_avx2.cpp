@@ -47,7 +47,8 @@ void affine_span(const float* x, float* y, int64_t n, float mean, float scale, f
   }
 }
 
-// LayerNorm of one row: two passes in float (mean, then the centred sum of squares), 4-way accumulators.
+// LayerNorm of one row: pass 1 a float mean m0; pass 2 sums d = x - m0 and d^2 (4-way accumulators), which
+// corrects the mean (m = m0 + mean(d)) and gives the biased variance mean(d^2) - mean(d)^2 without cancellation.
 void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps) {
   __m256 s0 = _mm256_setzero_ps(), s1 = s0, s2 = s0, s3 = s0;
   int64_t i = 0;
@@ -57,26 +58,29 @@ void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, con
   }
   for (; i + 8 <= c; i += 8) s0 = _mm256_add_ps(s0, _mm256_loadu_ps(x + i));
   if (i < c) s1 = _mm256_add_ps(s1, _mm256_maskload_ps(x + i, tail_mask(c - i)));
-  const float mean = hsum_ps(_mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3))) / static_cast<float>(c);
+  const float inv_c = 1.0f / static_cast<float>(c);
+  const float m0 = hsum_ps(_mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3))) * inv_c;
 
-  const __m256 vm = _mm256_set1_ps(mean);
-  s0 = s1 = s2 = s3 = _mm256_setzero_ps();
-  i = 0;
-  for (; i + 16 <= c; i += 16) {
-    const __m256 d0 = _mm256_sub_ps(_mm256_loadu_ps(x + i), vm), d1 = _mm256_sub_ps(_mm256_loadu_ps(x + i + 8), vm);
-    s0 = _mm256_fmadd_ps(d0, d0, s0), s1 = _mm256_fmadd_ps(d1, d1, s1);
+  const __m256 vm0 = _mm256_set1_ps(m0);
+  __m256 d0 = _mm256_setzero_ps(), d1 = d0, q0 = d0, q1 = d0;
+  for (i = 0; i + 16 <= c; i += 16) {
+    const __m256 a = _mm256_sub_ps(_mm256_loadu_ps(x + i), vm0), b = _mm256_sub_ps(_mm256_loadu_ps(x + i + 8), vm0);
+    d0 = _mm256_add_ps(d0, a), d1 = _mm256_add_ps(d1, b);
+    q0 = _mm256_fmadd_ps(a, a, q0), q1 = _mm256_fmadd_ps(b, b, q1);
   }
   for (; i + 8 <= c; i += 8) {
-    const __m256 d = _mm256_sub_ps(_mm256_loadu_ps(x + i), vm);
-    s2 = _mm256_fmadd_ps(d, d, s2);
+    const __m256 a = _mm256_sub_ps(_mm256_loadu_ps(x + i), vm0);
+    d0 = _mm256_add_ps(d0, a), q0 = _mm256_fmadd_ps(a, a, q0);
   }
   if (i < c) {
     const __m256i m = tail_mask(c - i);
-    const __m256 d = _mm256_and_ps(_mm256_sub_ps(_mm256_maskload_ps(x + i, m), vm), _mm256_castsi256_ps(m));
-    s3 = _mm256_fmadd_ps(d, d, s3);
+    const __m256 a = _mm256_and_ps(_mm256_sub_ps(_mm256_maskload_ps(x + i, m), vm0), _mm256_castsi256_ps(m));
+    d1 = _mm256_add_ps(d1, a), q1 = _mm256_fmadd_ps(a, a, q1);
   }
-  const float var = hsum_ps(_mm256_add_ps(_mm256_add_ps(s0, s1), _mm256_add_ps(s2, s3))) / static_cast<float>(c);
-  const __m256 rstd = _mm256_set1_ps(1.0f / __builtin_sqrtf(var + eps));
+  const float dmean = hsum_ps(_mm256_add_ps(d0, d1)) * inv_c;
+  const float var = hsum_ps(_mm256_add_ps(q0, q1)) * inv_c - dmean * dmean;
+  const __m256 vm = _mm256_set1_ps(m0 + dmean);
+  const __m256 rstd = _mm256_set1_ps(1.0f / __builtin_sqrtf((var > 0.0f ? var : 0.0f) + eps));
 
   for (i = 0; i + 8 <= c; i += 8) {
     __m256 v = _mm256_mul_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), vm), rstd);
