@@ -101,8 +101,11 @@ void run_gemm(const GemmJob& job) {
   const double flops = 2.0 * double(M) * double(job.segments * job.seg_cols) * double(K);
   int threads = omp_in_parallel() ? 1 : num_threads();
   if (flops < kSerialFlops) threads = 1;
-  // Split M across threads when every thread gets a few micro-panels of rows, else split the N panels.
-  const bool split_m = mpanels >= int64_t(threads) * 4;
+  // Split the larger dimension across threads. Splitting M shares each packed B block (one barrier per block);
+  // splitting N (convolutions: cout rows x frames*pixels columns) lets every thread pack its own B panels and
+  // reuse each of them over all rows, with no barrier.
+  const int64_t ncols = job.segments * job.seg_cols;
+  const bool split_m = M >= ncols ? mpanels >= threads : npanels < int64_t(threads) * 2;
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
   const bool direct_a = job.a->direct != nullptr;
@@ -113,10 +116,15 @@ void run_gemm(const GemmJob& job) {
   float* const scratch = tl_pack.get(size_t(b_floats + int64_t(threads) * a_slice) + 16);
   float* const b_shared = scratch;
   const Epilogue& ep = job.ep;
-  // Row chunks handed out dynamically (a thread slowed down by anything else on the machine takes fewer);
-  // at least ~4 per thread, at most one L2-sized A block. One counter per (jc, pc) iteration.
-  const int64_t chunk_rows =
-      split_m ? std::clamp(ceil_div(ceil_div(M, int64_t(threads) * 4), MR) * MR, int64_t(MR), kMcMax) : kMcMax;
+  // Row chunks handed out dynamically (a thread slowed down by anything else on the machine takes fewer): up to
+  // 4 per thread but no fewer than ~96 rows (each B micro-panel is reused over a chunk's rows), at most one
+  // L2-sized A block. One counter per (jc, pc) iteration.
+  int64_t chunk_rows = kMcMax;
+  if (split_m) {
+    const int64_t per_thread = ceil_div(M, threads);
+    const int64_t chunks = std::max(ceil_div(per_thread, kMcMax), std::clamp<int64_t>(per_thread / 96, 1, 4));
+    chunk_rows = ceil_div(ceil_div(per_thread, chunks), MR) * MR;
+  }
   const int64_t nchunks = ceil_div(M, chunk_rows);
   std::unique_ptr<std::atomic<int64_t>[]> next_chunk(new std::atomic<int64_t>[size_t(njc * npc)]);
   for (int64_t i = 0; i < njc * npc; ++i) next_chunk[i].store(0, std::memory_order_relaxed);
