@@ -1,0 +1,110 @@
+// Tensor, Arena and the dtype conversions.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+
+#include "core/dtype.h"
+#include "core/error.h"
+#include "core/tensor.h"
+#include "core/threading.h"
+
+namespace egopd {
+namespace {
+
+// binary16 value computed from its fields with ldexp (independent of the bit-twiddling under test)
+double half_reference(uint16_t h) {
+  const int sign = (h >> 15) & 1, exp = (h >> 10) & 0x1f, man = h & 0x3ff;
+  double v;
+  if (exp == 0) v = std::ldexp(double(man), -24);
+  else if (exp == 31) v = man ? NAN : INFINITY;
+  else v = std::ldexp(double(1024 + man), exp - 25);
+  return sign ? -v : v;
+}
+
+TEST(Dtype, HalfToFloatExhaustive) {
+  for (uint32_t h = 0; h < 65536; ++h) {
+    const float f = half_to_float(uint16_t(h));
+    const double r = half_reference(uint16_t(h));
+    if (std::isnan(r)) {
+      EXPECT_TRUE(std::isnan(f)) << h;
+    } else {
+      ASSERT_EQ(double(f), r) << h;
+      ASSERT_EQ(std::signbit(f), std::signbit(r)) << h;
+    }
+  }
+}
+
+TEST(Dtype, FloatToHalfRoundsToNearestEven) {
+  for (uint32_t h = 0; h < 65536; ++h) {  // every half survives the round trip
+    if (std::isnan(half_reference(uint16_t(h)))) continue;
+    ASSERT_EQ(float_to_half(half_to_float(uint16_t(h))), h) << h;
+  }
+  // halfway between 1 and 1+2^-10 rounds to even (1); just above rounds up
+  EXPECT_EQ(half_to_float(float_to_half(1.0f + std::ldexp(1.0f, -11))), 1.0f);
+  EXPECT_EQ(half_to_float(float_to_half(1.0f + std::ldexp(1.0f, -11) + std::ldexp(1.0f, -20))),
+            1.0f + std::ldexp(1.0f, -10));
+  EXPECT_TRUE(std::isinf(half_to_float(float_to_half(65520.0f))));
+  EXPECT_EQ(half_to_float(float_to_half(65519.0f)), 65504.0f);
+  EXPECT_EQ(half_to_float(float_to_half(std::ldexp(1.0f, -25))), 0.0f);  // tie to even (0)
+  EXPECT_EQ(half_to_float(float_to_half(std::ldexp(1.5f, -25))), std::ldexp(1.0f, -24));
+  EXPECT_TRUE(std::isnan(half_to_float(float_to_half(NAN))));
+}
+
+TEST(Dtype, Bfloat16) {
+  EXPECT_EQ(bf16_to_float(float_to_bf16(1.0f)), 1.0f);
+  // 1 + 2^-8 is halfway between 1 and 1 + 2^-7: ties to even
+  EXPECT_EQ(bf16_to_float(float_to_bf16(1.0f + std::ldexp(1.0f, -8))), 1.0f);
+  EXPECT_EQ(bf16_to_float(float_to_bf16(1.0f + 3 * std::ldexp(1.0f, -8))), 1.0f + std::ldexp(1.0f, -6));
+  EXPECT_TRUE(std::isnan(bf16_to_float(float_to_bf16(NAN))));
+  uint16_t b[2] = {0x3f80, 0xc000};
+  float out[2];
+  convert_to_f32(DType::BF16, b, out, 2);
+  EXPECT_EQ(out[0], 1.0f);
+  EXPECT_EQ(out[1], -2.0f);
+  EXPECT_THROW(convert_to_f32(DType::I64, b, out, 1), Error);
+}
+
+TEST(Tensor, ShapesViewsAndClones) {
+  Tensor t = Tensor::from({2, 3}, {0, 1, 2, 3, 4, 5});
+  EXPECT_EQ(t.shape().str(), "[2,3]");
+  EXPECT_EQ(t.dim(-1), 3);
+  Tensor r = t.reshaped({3, 2});
+  r[0] = 9;
+  EXPECT_EQ(t[0], 9);  // shallow
+  Tensor c = t.clone();
+  c[1] = 7;
+  EXPECT_EQ(t[1], 1);  // deep
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(t.data()) % 64, 0u);
+  EXPECT_THROW(t.reshaped({4, 2}), Error);
+  EXPECT_THROW(Shape({1, 2, 3, 4, 5, 6, 7}), Error);
+  Tensor six({1, 2, 1, 2, 1, 2});
+  EXPECT_EQ(six.numel(), 8);
+}
+
+TEST(Arena, ReusesReleasedMemoryAndGrows) {
+  Arena a(64);
+  const size_t m = a.mark();
+  Tensor x = a.take({10});
+  Tensor y = a.take({100});  // does not fit the first chunk: a new chunk, x stays valid
+  x[9] = 1.0f;
+  y[99] = 2.0f;
+  EXPECT_EQ(x[9], 1.0f);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(y.data()) % 64, 0u);
+  a.release(m);
+  Tensor z = a.take({10});
+  EXPECT_EQ(z.data(), x.data());  // the same block again
+  EXPECT_GE(a.peak_bytes(), 110 * sizeof(float));
+  EXPECT_THROW(a.release(a.mark() + 16), Error);
+}
+
+TEST(Threads, SettingAndDefault) {
+  set_num_threads(1);
+  EXPECT_EQ(num_threads(), 1);
+  set_num_threads(0);
+  EXPECT_GE(num_threads(), 1);
+  EXPECT_GE(physical_cores(), 1);
+}
+
+}  // namespace
+}  // namespace egopd
