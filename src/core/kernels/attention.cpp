@@ -13,6 +13,7 @@
 namespace egopd {
 
 namespace avx2 {  // attention_avx2.cpp
+int64_t attention_tile_queries();
 int64_t attention_tile_workspace(int64_t dh);
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
 void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq);
@@ -45,9 +46,9 @@ void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, in
   for (int64_t d = 0; d < dh; ++d) out[d] = acc[d] * inv;
 }
 
-// Blocked AVX2 kernel: units of (batch, head, 64-query tile), each with its own workspace.
+// Blocked AVX2 kernel: units of (batch, head, query tile), each thread with its own workspace.
 void attention_avx2(const AttentionArgs& a) {
-  constexpr int64_t kTile = 64;
+  const int64_t kTile = avx2::attention_tile_queries();
   const int64_t tiles = (a.lq + kTile - 1) / kTile;
   const int64_t units = a.batch * a.heads * tiles;
   const bool prefetch = a.lq <= kTile && a.lk <= kTile;  // short sequences: latency-bound without it

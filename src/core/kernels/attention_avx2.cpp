@@ -197,11 +197,14 @@ void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int
     }
 }
 
+int64_t attention_tile_queries() { return kBQ; }
+
 int64_t attention_tile_workspace(int64_t dh) {
   return dh * kBQ + kBK * kBQ + kBQ * round_up8(dh) + 3 * kBQ;
 }
 
-// Queries [q0, q0 + nq) (nq <= 64) of head h in batch b. work: attention_tile_workspace(dh) floats.
+// Queries [q0, q0 + nq) (nq <= attention_tile_queries()) of head h in batch b.
+// work: attention_tile_workspace(dh) floats.
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work) {
   const int64_t dh = a.dh, dhp = round_up8(dh);
   float* qt = work;            // [dh][kBQ]  c * Q^T, zero beyond nq

@@ -35,9 +35,11 @@ void affine_span(const float* x, float* y, int64_t n, float mean, float scale, f
   const __m256 m0 = _mm256_set1_ps(mean), a = _mm256_set1_ps(scale), b = _mm256_set1_ps(shift);
   int64_t i = 0;
   if (silu) {
-    for (; i + 8 <= n; i += 8) _mm256_storeu_ps(y + i, silu_ps(_mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), m0), a, b)));
+    for (; i + 8 <= n; i += 8)
+      _mm256_storeu_ps(y + i, silu_ps(_mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), m0), a, b)));
   } else {
-    for (; i + 8 <= n; i += 8) _mm256_storeu_ps(y + i, _mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), m0), a, b));
+    for (; i + 8 <= n; i += 8)
+      _mm256_storeu_ps(y + i, _mm256_fmadd_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), m0), a, b));
   }
   if (i < n) {
     const __m256i m = tail_mask(n - i);
