@@ -21,29 +21,35 @@ void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int
 
 namespace {
 
-// One query row of one head against all of its keys: online softmax, accumulating in a dh-sized buffer.
+// q . k with 8 independent partial sums (the compiler may keep them in SIMD registers).
+float dot(const float* q, const float* k, int64_t n) {
+  float acc[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  int64_t d = 0;
+  for (; d + 8 <= n; d += 8)
+    for (int u = 0; u < 8; ++u) acc[u] += q[d + u] * k[d + u];
+  float s = ((acc[0] + acc[4]) + (acc[1] + acc[5])) + ((acc[2] + acc[6]) + (acc[3] + acc[7]));
+  for (; d < n; ++d) s += q[d] * k[d];
+  return s;
+}
+
+// One query row of one head against its nk keys: scores into p [nk], stable softmax, then P.V into out.
 void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, int64_t v_ld, int64_t nk, int64_t dh,
-                float scale, float* acc, float* out) {
-  float m = -INFINITY, l = 0.0f;
-  std::fill(acc, acc + dh, 0.0f);
+                float scale, float* p, float* out) {
+  float mx = -INFINITY;
   for (int64_t j = 0; j < nk; ++j) {
-    const float* kr = k + j * k_ld;
-    float sdot = 0.0f;
-    for (int64_t d = 0; d < dh; ++d) sdot += q[d] * kr[d];
-    const float sj = sdot * scale;
-    if (sj > m) {
-      const float corr = std::exp(m - sj);  // exp(-inf) = 0 on the first key
-      l *= corr;
-      for (int64_t d = 0; d < dh; ++d) acc[d] *= corr;
-      m = sj;
-    }
-    const float p = std::exp(sj - m);
-    l += p;
-    const float* vr = v + j * v_ld;
-    for (int64_t d = 0; d < dh; ++d) acc[d] += p * vr[d];
+    p[j] = dot(q, k + j * k_ld, dh) * scale;
+    mx = std::max(mx, p[j]);
   }
-  const float inv = 1.0f / l;
-  for (int64_t d = 0; d < dh; ++d) out[d] = acc[d] * inv;
+  float sum = 0.0f;
+  for (int64_t j = 0; j < nk; ++j) sum += (p[j] = std::exp(p[j] - mx));
+  std::fill(out, out + dh, 0.0f);
+  for (int64_t j = 0; j < nk; ++j) {
+    const float* vr = v + j * v_ld;
+    const float pj = p[j];
+    for (int64_t d = 0; d < dh; ++d) out[d] += pj * vr[d];
+  }
+  const float inv = 1.0f / sum;
+  for (int64_t d = 0; d < dh; ++d) out[d] *= inv;
 }
 
 // Blocked AVX2 kernel: units of (batch, head, query tile), each thread with its own workspace.
@@ -81,14 +87,14 @@ void attention(const AttentionArgs& a) {
   const bool par = !omp_in_parallel() && units * a.lk * a.dh >= (1 << 16);
 #pragma omp parallel if (par)
   {
-    std::vector<float> acc(a.dh);
+    std::vector<float> scores(a.lk);  // one row of probabilities: lk floats per thread
 #pragma omp for schedule(static)
     for (int64_t u = 0; u < units; ++u) {
       const int64_t i = u % a.lq, h = (u / a.lq) % a.heads, b = u / (a.lq * a.heads);
       const int64_t off = h * a.dh;
       const int64_t nk = a.causal ? i + 1 : a.lk;
       attend_row(a.q + b * a.q_bs + i * a.q_ld + off, a.k + b * a.k_bs + off, a.k_ld, a.v + b * a.v_bs + off,
-                 a.v_ld, nk, a.dh, a.scale, acc.data(), a.out + b * a.out_bs + i * a.out_ld + off);
+                 a.v_ld, nk, a.dh, a.scale, scores.data(), a.out + b * a.out_bs + i * a.out_ld + off);
     }
   }
 }
