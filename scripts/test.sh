@@ -4,6 +4,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
+# Tests run in parallel, each with up to 2 OpenMP threads: sleeping (not spinning) idle workers keeps the
+# oversubscribed cores busy with real work.
+export OMP_WAIT_POLICY=passive
 
 ./scripts/build.sh
 ctest --test-dir build --output-on-failure -j"$jobs"
