@@ -40,7 +40,7 @@ void synthetic_values(const std::string& name, const Shape& shape, uint64_t seed
   const double bound = one_d ? 0.02 : 1.0 / std::sqrt(double(std::max<int64_t>(1, n / shape[0])));
   const uint64_t base = name_hash(name) ^ (seed * 0x2545f4914f6cdd1dull);
   constexpr int64_t kChunk = 1 << 16;  // independent streams per chunk so generation parallelises
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
   for (int64_t c0 = 0; c0 < n; c0 += kChunk) {
     uint64_t s = base + uint64_t(c0);
     const int64_t c1 = std::min(n, c0 + kChunk);
@@ -72,7 +72,7 @@ void write_synthetic_safetensors(const std::string& path, const std::vector<std:
       std::memcpy(bytes.data(), values.data(), size_t(n) * 4);
     } else {
       auto* h = reinterpret_cast<uint16_t*>(bytes.data());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > 262144)
       for (int64_t i = 0; i < n; ++i) h[i] = dtype == DType::F16 ? float_to_half(values[size_t(i)]) : float_to_bf16(values[size_t(i)]);
     }
     w.write(bytes.data(), size_t(n) * dtype_size(dtype));
