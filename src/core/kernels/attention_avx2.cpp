@@ -27,7 +27,7 @@ static inline int64_t round_up8(int64_t n) { return (n + 7) / 8 * 8; }
 static inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 
 // S^T[r][0..15] = sum_d K[r][d] * Qt[d][0..15] for R key rows; qt points at Qt[0][i0] (stride kBQ).
-// Tail blocks (R < 6). The accumulators start from memory: GCC keeps a zero-initialised array in memory.
+// Used for tail blocks (R < 6). The accumulators start from memory: GCC keeps a zero-initialised array there.
 template <int R>
 static inline void score_block(const float* qt, int64_t dh, const float* k, int64_t k_ld, float* st) {
   for (int r = 0; r < R; ++r)
@@ -237,14 +237,14 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
       __m256 mx = _mm256_set1_ps(-__builtin_inff());
       for (int64_t j = 0; j < nk; ++j) mx = _mm256_max_ps(mx, _mm256_loadu_ps(st + j * kBQ + i));
       const __m256 m_old = _mm256_loadu_ps(m + i);
-      __m256 m_new = _mm256_max_ps(m_old, mx);
-      // A column with no visible key yet keeps m = -inf; use 0 so exp2(-inf - 0) = 0 instead of NaN.
-      m_new = _mm256_blendv_ps(m_new, _mm256_setzero_ps(),
-                               _mm256_cmp_ps(m_new, _mm256_set1_ps(-__builtin_inff()), _CMP_EQ_OQ));
-      const __m256 cr = exp2_ps(_mm256_sub_ps(m_old, m_new));
+      const __m256 m_new = _mm256_max_ps(m_old, mx);
+      // A column with no visible key yet keeps m = -inf; subtract 0 instead so exp2(-inf - 0) = 0, not NaN.
+      const __m256 m_sub = _mm256_blendv_ps(m_new, _mm256_setzero_ps(),
+                                            _mm256_cmp_ps(m_new, _mm256_set1_ps(-__builtin_inff()), _CMP_EQ_OQ));
+      const __m256 cr = exp2_ps(_mm256_sub_ps(m_old, m_sub));
       __m256 sum = _mm256_setzero_ps();
       for (int64_t j = 0; j < nk; ++j) {
-        const __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_new));
+        const __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_sub));
         _mm256_storeu_ps(st + j * kBQ + i, p);
         sum = _mm256_add_ps(sum, p);
       }
