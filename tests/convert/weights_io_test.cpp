@@ -94,11 +94,19 @@ TEST(WriteWeights, ShardedModelDirectoryPassesInspect) {
   WriteOptions w;
   w.shard_bytes = shard_bytes_from_mb(1);
   convert_dtype(dir.str("m"), dir.str("f16"), TargetDType::F16, w);
-  EXPECT_TRUE(fs::exists(dir.path / "f16" / "unet" / "diffusion_pytorch_model.safetensors.index.json"));
-  EXPECT_TRUE(fs::exists(dir.path / "f16" / "unet" / "diffusion_pytorch_model-00001-of-00006.safetensors"));
+  const fs::path unet = dir.path / "f16" / "unet";
+  EXPECT_FALSE(fs::exists(unet / "diffusion_pytorch_model.safetensors"));
+  const auto shards = resolve_weight_files(unet.string(), "diffusion_pytorch_model");
+  EXPECT_GT(shards.size(), 1u);  // the tiny U-Net is several MB
+  for (const auto& s : shards) {  // the limit counts tensor bytes (as Hugging Face's max_shard_size does)
+    uint64_t bytes = 0;
+    for (const auto& t : SafeTensorsFile(s).tensors()) bytes += t.nbytes;
+    EXPECT_LE(bytes, uint64_t(1) << 20) << s;
+  }
   std::ostringstream report;
   EXPECT_EQ(inspect_path(dir.str("f16"), report, InspectOptions{false}), 0u) << report.str();
-  EXPECT_NE(report.str().find("F16 x715"), std::string::npos) << report.str();
+  const size_t n = WeightMap::load_dir(dir.str("m/unet"), "diffusion_pytorch_model", "unet").keys().size();
+  EXPECT_NE(report.str().find("F16 x" + std::to_string(n) + ")"), std::string::npos) << report.str();
 }
 
 // ------------------------------------------------------------------------------------------ bad input
