@@ -173,9 +173,10 @@ TEST_P(GemmTest, AwkwardShapesAllTransposes) {
 
 TEST_P(GemmTest, LargeAndMultiBlockShapes) {
   // 300x257x129: tails everywhere; K = 800 and 1000: several K passes; M = 450: several M blocks per thread;
-  // N = 2100: several column blocks; M = 3 with large N: the threads split N instead of M.
+  // N = 2100: several column blocks; M < N: the threads split N instead of M, unsynchronised, through K blocks
+  // of unequal depth and column blocks of unequal width (10 x 2060 x 800).
   const Case cases[] = {{300, 257, 129}, {97, 45, 800}, {450, 33, 70}, {13, 2100, 9}, {3, 1000, 40},
-                        {64, 320, 1000}};
+                        {64, 320, 1000}, {10, 2060, 800}};
   uint32_t seed = 100;
   for (Case c : cases)
     for (int t = 0; t < 4; ++t) {

@@ -109,7 +109,10 @@ void run_gemm(const GemmJob& job) {
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
   const bool direct_a = job.a->direct != nullptr;
-  const int64_t b_block = kc_blk * jc_panels * NR;  // floats of one B block
+  // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
+  // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
+  // with the size of the column block).
+  const int64_t b_block = kc_blk * (jc_panels + (split_m ? 0 : threads)) * NR;  // floats of one B block
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
   const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_blk + 15) / 16 * 16;  // floats of one thread's A block
   const int64_t b_floats = b_block * (double_buffer ? 2 : 1);
@@ -140,6 +143,8 @@ void run_gemm(const GemmJob& job) {
       // Panels this thread packs, and panels it multiplies (all of them when splitting M).
       const int64_t pk_lo = p_begin + np * tid / nth, pk_hi = p_begin + np * (tid + 1) / nth;
       const int64_t pm_lo = split_m ? p_begin : pk_lo, pm_hi = split_m ? p_end : pk_hi;
+      const int64_t own_slots = ceil_div(jc_panels, nth);  // nth * own_slots <= jc_panels + nth - 1
+      const auto panel_slot = [&](int64_t p) { return split_m ? p - p_begin : p - pk_lo + tid * own_slots; };
       for (int64_t pc = 0; pc < npc; ++pc, ++iter) {
         const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
         float* b_pack = b_shared + (double_buffer ? (iter & 1) * b_block : 0);
@@ -149,7 +154,7 @@ void run_gemm(const GemmJob& job) {
         for (int64_t p = pk_lo; p < pk_hi; ++p) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-          job.b->pack(seg, k0, kc, n0, nr, b_pack + (p - p_begin) * kc * NR);
+          job.b->pack(seg, k0, kc, n0, nr, b_pack + panel_slot(p) * kc_blk * NR);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -171,7 +176,7 @@ void run_gemm(const GemmJob& job) {
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-            const float* bp = b_pack + (p - p_begin) * kc * NR;
+            const float* bp = b_pack + panel_slot(p) * kc_blk * NR;
             float* cp = job.c + seg * job.c_seg_stride + n0;
             te.bias_col = bias_col ? bias_col + n0 : nullptr;
             for (int64_t ir = 0; ir < mc; ir += MR) {
