@@ -11,6 +11,8 @@ namespace egopd {
 int cmd_forward(const Args& a);
 int cmd_evaluate(const Args& a);
 int cmd_tokenize(const Args& a);
+int cmd_predict(const Args& a);
+int cmd_counterfactual(const Args& a);
 
 // bench targets
 int bench_gemm(const Args& a);

@@ -58,6 +58,22 @@ const Command kCommands[] = {
      "  Default DIR: the CLIP tokenizer shipped with egopd (EGOPD_TOKENIZER_DIR, else share/egopd/tokenizer next\n"
      "  to the executable, else the source tree's data/tokenizer). Longer prompts are truncated to 77 ids (EOS kept\n"
      "  last) with a warning on stderr."},
+    {"predict", cmd_predict,
+     "egopd predict [--model DIR --video CLIP.mp4|FRAMES_DIR] [--masks DIR] [--meta META.json | --prompt TEXT]\n"
+     "              [--sampler euler|lcm] [--steps N] [--seed 0] [--frames 16] [--size 256] [--guidance MIN,MAX]\n"
+     "              [--decode-chunk N] [--template FILE] --out DIR\n"
+     "  Grasp pressure of a clip: F frames sampled uniformly, squashed to SIZE x SIZE; masks: one image per sampled\n"
+     "  frame (> 127 = hand). Prompt: --prompt verbatim, or built from --meta fields; neither: no-text mode.\n"
+     "  Sampler/steps default to the model's scheduler (--sampler lcm on an Euler model: 4 steps). Writes into DIR:\n"
+     "  heatmap_NNN.png, side_by_side.mp4 (RGB | heatmap, 5 fps), taxels.csv (N), summary.json.\n"
+     "  Without --model / --video: a built-in tiny SYNTHETIC model (random weights, cached in $XDG_CACHE_HOME/egopd\n"
+     "  or ~/.cache/egopd) and a synthetic sample clip (saved as DIR/sample_clip.mp4): a demo, not real pressures."},
+    {"counterfactual", cmd_counterfactual,
+     "egopd counterfactual --vary FIELD=v1,v2,...,omit [predict options] --out DIR\n"
+     "  The same clip and seed under prompt variants of one field (obj_name, weight, material, gender, age,\n"
+     "  subj_weight, bodyfat; base values from --meta; a bare number gets the field's unit, `omit` drops the field).\n"
+     "  Encodes the clip once and denoises once per variant. Writes DIR/<field>_<value>/ (predict's outputs),\n"
+     "  comparison.png (rows = variants, 4 frames) and forces.csv (mean / peak total force in N per variant)."},
     {"bench", cmd_bench,
      "egopd bench TARGET [options] [--threads T] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"

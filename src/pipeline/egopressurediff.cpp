@@ -132,8 +132,15 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
 
 std::optional<std::string> EgoPressureDiffPipeline::prompt_for(const PromptFields& fields) const {
   std::optional<std::string> p = build_prompt(fields);
-  if (p && !defaults_.prompt_template.empty()) p = fill_template(defaults_.prompt_template, fields);
-  return p;
+  if (!p || defaults_.prompt_template.empty()) return p;
+  // A model directory that spells out the paper's template (as weights.md §1.1 shows) still gets the clause
+  // dropping of §3.3; only a different template is filled verbatim. The paper's template is what build_prompt
+  // produces with every field present, so placeholders as values reproduce it.
+  PromptFields placeholders;
+  for (const auto& k : {"obj_name", "weight", "material", "gender", "age", "subj_weight", "bodyfat"})
+    placeholders[k] = std::string("{") + k + "}";
+  if (defaults_.prompt_template == build_prompt(placeholders)) return p;
+  return fill_template(defaults_.prompt_template, fields);
 }
 
 Tensor EgoPressureDiffPipeline::encode_text(const std::optional<std::string>& prompt, bool* truncated,

@@ -1,0 +1,244 @@
+#include "pipeline/media.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <system_error>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "core/error.h"
+#include "core/safetensors.h"
+
+namespace egopd {
+namespace fs = std::filesystem;
+
+std::vector<int64_t> uniform_frame_indices(int64_t n, int64_t count) {
+  if (n < 1 || count < 1) throw Error("frame sampling needs at least one frame");
+  std::vector<int64_t> idx(size_t(count), 0);
+  if (count == 1) return idx;
+  // Same arithmetic as numpy.linspace (start + i * step) followed by numpy.round (half to even, the default
+  // floating-point rounding mode of nearbyint).
+  const double step = double(n - 1) / double(count - 1);
+  for (int64_t i = 0; i < count; ++i) idx[size_t(i)] = int64_t(std::nearbyint(double(i) * step));
+  idx.back() = n - 1;  // numpy sets the endpoint exactly
+  return idx;
+}
+
+std::vector<std::string> list_image_files(const std::string& dir) {
+  static const char* const kExt[] = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"};
+  std::vector<std::string> files;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (!e.is_regular_file()) continue;
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    for (const char* k : kExt)
+      if (ext == k) files.push_back(e.path().string());
+  }
+  if (ec) throw Error(dir + ": cannot list folder (" + ec.message() + ")");
+  std::sort(files.begin(), files.end(), [](const std::string& a, const std::string& b) {
+    return fs::path(a).filename().string() < fs::path(b).filename().string();
+  });
+  return files;
+}
+
+cv::Mat squash_to_square(const cv::Mat& img, int size) {
+  const auto interp = [](int from, int to) { return to < from ? cv::INTER_AREA : cv::INTER_LINEAR; };
+  cv::Mat out;
+  if (img.cols == size && img.rows == size) return img.clone();
+  const bool shrink_x = size < img.cols, shrink_y = size < img.rows;
+  if (shrink_x == shrink_y || img.cols == size || img.rows == size) {
+    const int ix = img.cols == size ? interp(img.rows, size) : interp(img.cols, size);
+    cv::resize(img, out, cv::Size(size, size), 0, 0, ix);
+    return out;
+  }
+  // One axis shrinks, the other grows: INTER_AREA would act like nearest-neighbour on the growing axis.
+  cv::Mat tmp;
+  cv::resize(img, tmp, cv::Size(size, img.rows), 0, 0, interp(img.cols, size));
+  cv::resize(tmp, out, cv::Size(size, size), 0, 0, interp(img.rows, size));
+  return out;
+}
+
+static cv::Mat to_rgb8(const cv::Mat& bgr, const std::string& source) {
+  if (bgr.empty()) throw Error(source + ": cannot decode image");
+  cv::Mat m = bgr;
+  if (m.depth() != CV_8U) {  // 16-bit PNG/TIFF: scale to 8 bits
+    cv::Mat c;
+    m.convertTo(c, CV_8U, m.depth() == CV_16U ? 1.0 / 257.0 : 255.0);
+    m = c;
+  }
+  cv::Mat rgb;
+  if (m.channels() == 1) cv::cvtColor(m, rgb, cv::COLOR_GRAY2RGB);
+  else if (m.channels() == 4) cv::cvtColor(m, rgb, cv::COLOR_BGRA2RGB);
+  else cv::cvtColor(m, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
+}
+
+static LoadedClip load_folder(const std::string& dir, int64_t frames, int size) {
+  const std::vector<std::string> files = list_image_files(dir);
+  if (files.empty()) throw Error(dir + ": folder holds no images (png, jpg, jpeg, bmp, tif, tiff, webp)");
+  LoadedClip c;
+  c.source_frames = int64_t(files.size());
+  c.source_indices = uniform_frame_indices(c.source_frames, frames);
+  for (int64_t i : c.source_indices) {
+    const std::string& f = files[size_t(i)];
+    c.rgb.push_back(squash_to_square(to_rgb8(cv::imread(f, cv::IMREAD_UNCHANGED), f), size));
+  }
+  return c;
+}
+
+static LoadedClip load_video(const std::string& path, int64_t frames, int size) {
+  // Two passes: count the frames by grabbing them (the container's frame count is often wrong), then decode only
+  // the sampled ones, so a long clip never sits in memory.
+  cv::VideoCapture cap(path);
+  if (!cap.isOpened()) throw Error(path + ": cannot open video (unsupported format or not a video)");
+  int64_t n = 0;
+  while (cap.grab()) ++n;
+  if (n == 0) throw Error(path + ": video has zero readable frames");
+  LoadedClip c;
+  c.source_frames = n;
+  c.source_indices = uniform_frame_indices(n, frames);
+  cap.release();
+  if (!cap.open(path)) throw Error(path + ": cannot reopen video");
+  int64_t pos = 0;
+  cv::Mat bgr;
+  for (int64_t want : c.source_indices) {
+    // Sampled indices repeat when the clip is shorter than F: reuse the last decoded frame.
+    if (want < pos && !bgr.empty()) {
+      c.rgb.push_back(c.rgb.back().clone());
+      continue;
+    }
+    for (; pos < want; ++pos)
+      if (!cap.grab()) throw Error(path + ": video ended early while seeking frame " + std::to_string(want));
+    if (!cap.read(bgr)) throw Error(path + ": cannot decode frame " + std::to_string(want));
+    ++pos;
+    c.rgb.push_back(squash_to_square(to_rgb8(bgr, path), size));
+  }
+  return c;
+}
+
+LoadedClip load_clip(const std::string& path, int64_t frames, int size) {
+  if (frames < 1) throw Error("--frames must be at least 1");
+  if (!fs::exists(path)) throw Error(path + ": no such video file or frame folder");
+  return fs::is_directory(path) ? load_folder(path, frames, size) : load_video(path, frames, size);
+}
+
+Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb) {
+  if (rgb.empty()) throw Error("no frames");
+  const int64_t F = int64_t(rgb.size()), H = rgb[0].rows, W = rgb[0].cols, plane = H * W;
+  Tensor t({F, 3, H, W});
+  for (int64_t f = 0; f < F; ++f) {
+    const cv::Mat& m = rgb[size_t(f)];
+    if (m.rows != H || m.cols != W || m.type() != CV_8UC3) throw Error("frames must share one size and be 8-bit RGB");
+    float* dst = t.data() + f * 3 * plane;
+    for (int64_t y = 0; y < H; ++y) {
+      const uint8_t* row = m.ptr<uint8_t>(int(y));
+      for (int64_t x = 0; x < W; ++x)
+        for (int64_t ch = 0; ch < 3; ++ch) dst[ch * plane + y * W + x] = 2.0f * (float(row[x * 3 + ch]) / 255.0f) - 1.0f;
+    }
+  }
+  return t;
+}
+
+Tensor load_masks(const std::string& dir, int64_t frames, int size) {
+  if (!fs::is_directory(dir)) throw Error(dir + ": mask folder does not exist");
+  const std::vector<std::string> files = list_image_files(dir);
+  if (int64_t(files.size()) != frames)
+    throw Error(dir + ": " + std::to_string(files.size()) + " mask images but " + std::to_string(frames) +
+                " sampled frames (give one mask per sampled frame)");
+  const int64_t plane = int64_t(size) * size;
+  Tensor t({frames, 1, size, size});
+  for (int64_t f = 0; f < frames; ++f) {
+    const std::string& path = files[size_t(f)];
+    cv::Mat g = cv::imread(path, cv::IMREAD_GRAYSCALE);
+    if (g.empty()) throw Error(path + ": cannot decode mask image");
+    cv::Mat r;
+    cv::resize(g, r, cv::Size(size, size), 0, 0, cv::INTER_NEAREST);
+    float* dst = t.data() + f * plane;
+    for (int y = 0; y < size; ++y) {
+      const uint8_t* row = r.ptr<uint8_t>(y);
+      for (int x = 0; x < size; ++x) dst[int64_t(y) * size + x] = row[x] > 127 ? 1.0f : 0.0f;
+    }
+  }
+  return t;
+}
+
+std::vector<cv::Mat> synthetic_sample_clip(int frames, int size) {
+  // Drawn at 256 x 256 in BGR and resized, so every size shows the same scene.
+  const int S = 256;
+  const cv::Scalar background(214, 222, 226), table(150, 170, 186), box(60, 70, 200), box_top(90, 110, 230);
+  const cv::Scalar skin(128, 160, 222), skin_dark(100, 130, 190);
+  std::vector<cv::Mat> out;
+  for (int f = 0; f < frames; ++f) {
+    const double t = frames > 1 ? double(f) / double(frames - 1) : 1.0;  // 0: open hand far away, 1: grasp
+    cv::Mat img(S, S, CV_8UC3, background);
+    cv::rectangle(img, cv::Point(0, 190), cv::Point(S, S), table, cv::FILLED);
+    cv::rectangle(img, cv::Point(104, 130), cv::Point(160, 196), box, cv::FILLED, cv::LINE_AA);
+    cv::rectangle(img, cv::Point(104, 122), cv::Point(160, 134), box_top, cv::FILLED, cv::LINE_AA);
+    // The hand approaches from the lower right, then the fingers curl towards the box.
+    const double approach = std::min(1.0, t / 0.6), close = std::max(0.0, (t - 0.6) / 0.4);
+    const cv::Point palm(int(std::lround(230 - 50 * approach)), int(std::lround(230 - 60 * approach)));
+    cv::ellipse(img, palm, cv::Size(30, 36), -30, 0, 360, skin, cv::FILLED, cv::LINE_AA);
+    for (int k = 0; k < 4; ++k) {
+      const double base = -150 + 22 * k;  // finger direction in degrees (towards the upper left)
+      const double angle = (base - 40 * close) * CV_PI / 180.0;
+      const double len = 44 - 10 * close;
+      const cv::Point root(palm.x + int(std::lround(22 * std::cos(angle))), palm.y + int(std::lround(22 * std::sin(angle))));
+      const cv::Point tip(root.x + int(std::lround(len * std::cos(angle))), root.y + int(std::lround(len * std::sin(angle))));
+      cv::line(img, root, tip, skin, 13, cv::LINE_AA);
+      cv::circle(img, tip, 6, skin_dark, cv::FILLED, cv::LINE_AA);
+    }
+    const double ta = (150 + 30 * close) * CV_PI / 180.0;  // thumb swings under the box
+    const cv::Point troot(palm.x - 8, palm.y + 20);
+    cv::line(img, troot, cv::Point(troot.x + int(std::lround(40 * std::cos(ta))), troot.y + int(std::lround(40 * std::sin(ta)))),
+             skin, 14, cv::LINE_AA);
+    cv::Mat rgb;
+    cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+    out.push_back(squash_to_square(rgb, size));
+  }
+  return out;
+}
+
+void write_png_atomic(const std::string& path, const cv::Mat& bgr) {
+  std::vector<uint8_t> buf;
+  if (!cv::imencode(".png", bgr, buf)) throw Error(path + ": PNG encoding failed");
+  write_file_atomic(path, buf.data(), buf.size());
+}
+
+void write_video_atomic(const std::string& path, const std::vector<cv::Mat>& bgr, double fps) {
+  if (bgr.empty()) throw Error(path + ": no frames to write");
+  const fs::path p(path);
+  // The temporary name keeps the .mp4 extension: OpenCV picks the container from it.
+  std::string name = ".";  // appended piecewise: GCC 12 warns (-Wrestrict, falsely) on the chained operator+
+  name += p.stem().string();
+  name += ".tmp" + std::to_string(::getpid()) + ".mp4";
+  const fs::path tmp = p.parent_path() / name;
+  {
+    cv::VideoWriter w(tmp.string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, bgr[0].size(), true);
+    if (!w.isOpened()) throw Error(path + ": cannot open an MPEG-4 video writer (OpenCV built without a video backend?)");
+    for (const cv::Mat& m : bgr) {
+      if (m.size() != bgr[0].size()) throw Error(path + ": video frames differ in size");
+      w.write(m);
+    }
+    w.release();
+  }
+  std::error_code ec;
+  if (!fs::exists(tmp) || fs::file_size(tmp, ec) == 0) {
+    fs::remove(tmp, ec);
+    throw Error(path + ": video writer produced no file");
+  }
+  fs::rename(tmp, p, ec);
+  if (ec) {
+    const std::string why = ec.message();
+    fs::remove(tmp, ec);
+    throw Error(path + ": cannot move the video into place (" + why + ")");
+  }
+}
+
+}  // namespace egopd

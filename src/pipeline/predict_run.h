@@ -1,0 +1,57 @@
+#pragma once
+// The prediction commands behind `egopd predict` and `egopd counterfactual` (egopressurediff.md §8-§10): option
+// resolution (built-in synthetic model and clip, sampler/step defaults), the pipeline run with progress on stderr,
+// and the output folder (heatmap PNGs, side-by-side MP4, taxels.csv, summary.json). Kept in the pipeline library so
+// the tests drive exactly what the CLI runs.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace egopd {
+
+struct PredictOptions {
+  std::string model_dir;  // empty: the built-in synthetic model (created once in a cache folder)
+  std::string video;      // clip file or frame folder; empty: the built-in synthetic sample clip
+  std::string masks_dir;  // optional hint masks, one image per sampled frame
+  std::string meta_path;  // META.json -> prompt fields (exclusive with prompt)
+  std::optional<std::string> prompt;  // verbatim prompt
+  std::string sampler;                // "" (the model's scheduler), "euler" or "lcm"
+  int steps = 0;                      // 0: default (see resolve_steps)
+  uint64_t seed = 0;
+  int64_t frames = 0;  // 0: the model's default (16)
+  int64_t size = 256;
+  std::optional<std::pair<float, float>> guidance;  // min, max; default: the model's
+  int64_t decode_chunk = 0;                         // 0: all frames at once
+  std::string template_path;                        // empty: the shipped template
+  std::string out_dir;
+};
+
+// "MIN,MAX" (or one number for both) -> (min, max); one-line error otherwise.
+std::pair<float, float> parse_guidance(const std::string& text);
+
+// Steps to pass to the pipeline: the user's, else 4 when --sampler lcm overrides a model whose own scheduler is
+// Euler (the usual distilled-student setting), else 0 (the pipeline's default: model defaults / sampler default).
+int resolve_steps(const PredictOptions& o, const std::string& model_scheduler);
+
+// One attribute and its values for counterfactual prompting: FIELD=v1,v2,...; the value "omit" drops the field.
+struct VarySpec {
+  std::string field;
+  std::vector<std::string> values;
+};
+VarySpec parse_vary(const std::string& text);
+// Folder name of one variant, e.g. weight_355g, weight_omit (file-system safe).
+std::string variant_folder_name(const std::string& field, const std::string& formatted_value);
+
+// Folder of the built-in synthetic model: $XDG_CACHE_HOME/egopd/..., else ~/.cache/egopd/..., else (not writable)
+// <out_dir>/.egopd-default-model. Created on first use.
+std::string default_model_dir(const std::string& out_dir);
+
+// Run one prediction and write its outputs into o.out_dir. Returns 0.
+int run_predict(const PredictOptions& o);
+// Same clip and seed under every prompt variant of `vary` (one encode pass, one denoising run per variant);
+// one output folder per variant plus comparison.png and forces.csv in o.out_dir. Returns 0.
+int run_counterfactual(const PredictOptions& o, const VarySpec& vary);
+
+}  // namespace egopd
