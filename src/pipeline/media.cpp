@@ -11,6 +11,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <opencv2/videoio/registry.hpp>
 
 #include "core/error.h"
 #include "core/safetensors.h"
@@ -93,10 +94,16 @@ static LoadedClip load_folder(const std::string& dir, int64_t frames, int size) 
   return c;
 }
 
+// FFmpeg when OpenCV has it: the GStreamer backend (tried first by CAP_ANY on some builds) floods stderr with
+// critical messages for files it cannot play, and its frame counting differs.
+static int video_backend() {
+  return cv::videoio_registry::hasBackend(cv::CAP_FFMPEG) ? int(cv::CAP_FFMPEG) : int(cv::CAP_ANY);
+}
+
 static LoadedClip load_video(const std::string& path, int64_t frames, int size) {
   // Two passes: count the frames by grabbing them (the container's frame count is often wrong), then decode only
   // the sampled ones, so a long clip never sits in memory.
-  cv::VideoCapture cap(path);
+  cv::VideoCapture cap(path, video_backend());
   if (!cap.isOpened()) throw Error(path + ": cannot open video (unsupported format or not a video)");
   int64_t n = 0;
   while (cap.grab()) ++n;
@@ -105,7 +112,7 @@ static LoadedClip load_video(const std::string& path, int64_t frames, int size) 
   c.source_frames = n;
   c.source_indices = uniform_frame_indices(n, frames);
   cap.release();
-  if (!cap.open(path)) throw Error(path + ": cannot reopen video");
+  if (!cap.open(path, video_backend())) throw Error(path + ": cannot reopen video");
   int64_t pos = 0;
   cv::Mat bgr;
   for (int64_t want : c.source_indices) {
@@ -220,7 +227,8 @@ void write_video_atomic(const std::string& path, const std::vector<cv::Mat>& bgr
   name += ".tmp" + std::to_string(::getpid()) + ".mp4";
   const fs::path tmp = p.parent_path() / name;
   {
-    cv::VideoWriter w(tmp.string(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, bgr[0].size(), true);
+    cv::VideoWriter w(tmp.string(), video_backend(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, bgr[0].size(),
+                      true);
     if (!w.isOpened()) throw Error(path + ": cannot open an MPEG-4 video writer (OpenCV built without a video backend?)");
     for (const cv::Mat& m : bgr) {
       if (m.size() != bgr[0].size()) throw Error(path + ": video frames differ in size");

@@ -62,7 +62,7 @@ class StepProgress {
       const int fill = int(std::lround(double(kWidth) * i / n));
       const std::string bar = std::string(size_t(fill), '#') + std::string(size_t(kWidth - fill), ' ');
       const long e = std::lround(eta);
-      std::fprintf(stderr, "\r%sstep %d/%d [%s] %.2f s/it ETA %ld:%02ld", prefix_.c_str(), i, n, bar.c_str(), per,
+      std::fprintf(stderr, "\r%sstep %d/%d [%s] %.2f s/it ETA %ld:%02ld\033[K", prefix_.c_str(), i, n, bar.c_str(), per,
                    e / 60, e % 60);
       if (i == n) std::fputc('\n', stderr);
     } else {
