@@ -54,6 +54,7 @@ std::vector<float> stored_values(const WeightMap& w, const StoredTensor& t) {
   } else {
     convert_to_f32(t.dtype, t.data, v.data(), v.size());
   }
+  release_stored(t);
   return v;
 }
 

@@ -131,7 +131,7 @@ FromOriginalReport convert_from_original(const std::string& source, const std::s
         const KeyTransform tf = p.transform;
         t.fill = [s, tf](uint8_t* dst) {
           apply_transform(s->data, s->shape, dtype_size(s->dtype), tf, dst);
-          s->file->release_pages(s->offset, s->nbytes);  // keep resident memory small on real checkpoints
+          release_stored(*s);  // keep resident memory small on real checkpoints
         };
       }
       tensors.push_back(std::move(t));

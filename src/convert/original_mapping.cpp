@@ -282,7 +282,11 @@ bool is_dropped_text_leftover(const std::string& r) {
 KeyMapping map_original_key(const std::string& key, const OriginalLayout& layout) {
   std::string r = key;
   if (take(r, kOrigUNetPrefix)) return map_unet(r, layout.unet);
-  if (take(r, kOrigCondEncoderPrefix)) return map_vae_encoder(r);
+  if (take(r, kOrigCondEncoderPrefix)) {
+    // The conditioning engine (AutoencoderKLModeOnly) may also carry a decoder side that SVD never runs.
+    if (starts(r, "decoder.") || starts(r, "post_quant_conv.")) return dropped();
+    return map_vae_encoder(r);
+  }
   if (take(r, kOrigFirstStagePrefix)) {
     if (starts(r, "decoder.")) return map_vae_decoder(r, layout.vae_levels);
     if (starts(r, "encoder.")) return layout.has_conditioning_encoder ? dropped() : map_vae_encoder(r);

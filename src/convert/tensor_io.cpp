@@ -200,6 +200,11 @@ WeightMap open_weights_path(const std::string& path, const std::string& label) {
 
 void copy_stored(const StoredTensor& t, uint8_t* dst) {
   if (t.nbytes) std::memcpy(dst, t.data, t.nbytes);
+  release_stored(t);
+}
+
+void release_stored(const StoredTensor& t) {
+  if (t.file && t.nbytes) t.file->release_pages(t.offset, t.nbytes);
 }
 
 void copy_file_atomic(const std::string& from, const std::string& to) {

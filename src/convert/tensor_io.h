@@ -52,6 +52,8 @@ WeightMap open_weights_path(const std::string& path, const std::string& label);
 
 // A copy of the stored bytes of `t` (tensor data may be unaligned in the mapping).
 void copy_stored(const StoredTensor& t, uint8_t* dst);
+// Drops the mapped pages of `t` once it has been read, so streaming a real-size model keeps resident memory small.
+void release_stored(const StoredTensor& t);
 
 // Atomic copy of a whole file, streamed.
 void copy_file_atomic(const std::string& from, const std::string& to);

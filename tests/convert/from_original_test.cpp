@@ -100,7 +100,8 @@ TEST(OriginalMapping, DroppedAndUnknownKeys) {
                         "conditioner.embedders.0.open_clip.model.token_embedding.weight",
                         "conditioner.embedders.0.open_clip.model.ln_final.weight",
                         "conditioner.embedders.0.open_clip.model.positional_embedding",
-                        "first_stage_model.encoder.conv_in.weight"})
+                        "first_stage_model.encoder.conv_in.weight", "conditioner.embedders.3.encoder.decoder.conv_in.weight",
+                        "conditioner.embedders.3.encoder.post_quant_conv.bias"})
     EXPECT_EQ(map_original_key(k, l).kind, KeyMapping::Dropped) << k;
   for (const char* k : {"foo.bar", "model.diffusion_model.input_blocks.99.0.in_layers.0.weight",
                         "model.diffusion_model.input_blocks.1.0.bogus.weight", "model.diffusion_model.input_blocks.10.1.norm.weight",

@@ -107,7 +107,11 @@ TEST(Graft, GraftedUNetWithTextEqualsTheStockUNetBitForBit) {
 TEST(Graft, RefusesAUNetThatAlreadyHasPIFR) {
   ScratchDir dir("graft-twice");
   write_synthetic_model(dir.str("m"), "tiny", 1, DType::F32, 0);
-  GraftOptions o{dir.str("m"), dir.str("m/text_encoder"), dir.str("m/tokenizer"), dir.str("out")};
+  GraftOptions o;
+  o.svd_dir = dir.str("m");
+  o.text_encoder_dir = dir.str("m/text_encoder");
+  o.tokenizer_dir = dir.str("m/tokenizer");
+  o.out_dir = dir.str("out");
   test::expect_error([&] { graft_model(o); }, {"already has PIFR"});
 }
 

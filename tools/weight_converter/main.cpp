@@ -39,9 +39,10 @@ int cmd_synth(const Args& a) {
   if (t == TargetDType::Q8) throw Error("synth: --dtype must be f16, f32 or bf16 (quantise afterwards with dtype --to q8)");
   const DType dtype = t == TargetDType::F16 ? DType::F16 : t == TargetDType::BF16 ? DType::BF16 : DType::F32;
   write_synthetic_model(out, preset, uint64_t(seed), dtype, int(lcm));
+  std::string sampler = "Euler 25 steps";
+  if (lcm) sampler = "AnimateLCM " + std::to_string(lcm) + " steps";
   std::printf("wrote %s model (%s, seed %lld, %s) to %s\n", preset.c_str(), dtype_name(dtype),
-              static_cast<long long>(seed), lcm ? ("AnimateLCM " + std::to_string(lcm) + " steps").c_str() : "Euler 25 steps",
-              out.c_str());
+              static_cast<long long>(seed), sampler.c_str(), out.c_str());
   return 0;
 }
 
