@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <cstring>
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "core/error.h"
 
@@ -90,11 +91,22 @@ SafeTensorsFile::SafeTensorsFile(const std::string& path) {
   if (n > (uint64_t(100) << 20)) throw Error(path + ": safetensors header length " + std::to_string(n) + " is over 100 MiB");
   if (8 + n > size) throw Error(path + ": safetensors header length " + std::to_string(n) + " exceeds the file size");
   nlohmann::json header;
+  // The JSON parser keeps only one value of a repeated key, so repeated tensor names are caught while parsing.
+  std::string duplicate;
+  std::set<std::string> names;
+  const nlohmann::json::parser_callback_t track = [&](int depth, nlohmann::json::parse_event_t event,
+                                                      nlohmann::json& parsed) {
+    if (depth == 1 && event == nlohmann::json::parse_event_t::key && parsed.is_string() &&
+        !names.insert(parsed.get<std::string>()).second && duplicate.empty())
+      duplicate = parsed.get<std::string>();
+    return true;
+  };
   try {
-    header = nlohmann::json::parse(file_->data() + 8, file_->data() + 8 + n);
+    header = nlohmann::json::parse(file_->data() + 8, file_->data() + 8 + n, track);
   } catch (const std::exception& e) {
     throw Error(path + ": safetensors header is not valid JSON");
   }
+  if (!duplicate.empty()) throw Error(path + ": tensor " + duplicate + ": duplicate tensor name in the header");
   if (!header.is_object()) throw Error(path + ": safetensors header is not a JSON object");
   const size_t base = 8 + size_t(n);
   const size_t data_size = size - base;

@@ -123,6 +123,9 @@ TEST(SafeTensors, RejectsBadHeaders) {
   write_raw(p, R"({"a":{"dtype":"F32","shape":[1],"data_offsets":[0,4]},"b":{"dtype":"F16","shape":[2],"data_offsets":[2,6]}})",
             four + four);
   EXPECT_NE(error_of([&] { SafeTensorsFile f(p); }).find("overlap"), std::string::npos);
+  write_raw(p, R"({"a":{"dtype":"F32","shape":[1],"data_offsets":[0,4]},"a":{"dtype":"F32","shape":[1],"data_offsets":[4,8]}})",
+            four + four);
+  EXPECT_NE(error_of([&] { SafeTensorsFile f(p); }).find("duplicate tensor name"), std::string::npos);
   write_raw(p, R"({"a":{"dtype":"F32","shape":[1]}})", four);
   EXPECT_NE(error_of([&] { SafeTensorsFile f(p); }).find("tensor a"), std::string::npos);
   write_raw(p, R"({"a":{"dtype":"F32","shape":[-1],"data_offsets":[0,4]}})", four);
