@@ -133,7 +133,7 @@ struct TemporalB : gemm_detail::BSource {
       } else {
         const float* p = x + ((seg + tap - 1) * cin + k % cin) * hw + n0;
         if (use_avx2())
-          gemm_detail::pack_b_avx2(p, DType::F32, hw, false, run, nr, d);
+          gemm_detail::pack_b_avx2(p, DType::F32, hw, false, nullptr, run, nr, d);
         else
           gemm_detail::pack_b_portable(p, DType::F32, hw, false, nullptr, run, nr, d);
       }

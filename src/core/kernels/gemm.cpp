@@ -205,8 +205,8 @@ OperandA::OperandA(const Operand& o) : op(o) {
 void OperandA::pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
   const int64_t off = op.trans ? k0 * op.ld + m0 : m0 * op.ld + k0;
   const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  if (op.dtype != DType::I8 && use_avx2())
-    pack_a_avx2(p, op.dtype, op.ld, op.trans, mr, kc, dst);
+  if (use_avx2())
+    pack_a_avx2(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
   else
     pack_a_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
 }
@@ -214,8 +214,8 @@ void OperandA::pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) cons
 void OperandB::pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const {
   const int64_t off = seg * seg_stride + (op.trans ? n0 * op.ld + k0 : k0 * op.ld + n0);
   const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  if (op.dtype != DType::I8 && use_avx2())
-    pack_b_avx2(p, op.dtype, op.ld, op.trans, kc, nr, dst);
+  if (use_avx2())
+    pack_b_avx2(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
   else
     pack_b_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
 }

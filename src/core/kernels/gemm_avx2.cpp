@@ -163,9 +163,13 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 
 namespace {
 
-// 8 consecutive elements starting at element idx, as float32.
+// 8 consecutive elements starting at element idx, as float32 (I8: before its scale).
 __attribute__((always_inline)) inline __m256 load8(const void* p, DType dt, int64_t idx) {
   if (dt == DType::F32) return _mm256_loadu_ps(static_cast<const float*>(p) + idx);
+  if (dt == DType::I8) {
+    const __m128i q = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(static_cast<const int8_t*>(p) + idx));
+    return _mm256_cvtepi32_ps(_mm256_cvtepi8_epi32(q));
+  }
   const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(static_cast<const uint16_t*>(p) + idx));
   if (dt == DType::F16) return _mm256_cvtph_ps(h);
   return _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_cvtepu16_epi32(h), 16));  // BF16
@@ -191,38 +195,54 @@ __attribute__((always_inline)) inline void transpose8(__m256* r) {
   r[7] = _mm256_permute2f128_ps(s3, s7, 0x31);
 }
 
-// B(k, j) = p[k*ld + j], all 16 columns valid.
-__attribute__((always_inline)) inline void pack_b_rows16(const void* p, DType dt, int64_t ld, int64_t kc, float* dst) {
-  const int64_t es = dt == DType::F32 ? 4 : 2;
+// B(k, j) = p[k*ld + j] (* scale[j]), all 16 columns valid.
+__attribute__((always_inline)) inline void pack_b_rows16(const void* p, DType dt, int64_t ld, const float* scale,
+                                                         int64_t kc, float* dst) {
+  const int64_t es = dt == DType::F32 ? 4 : dt == DType::I8 ? 1 : 2;
+  const __m256 s0 = scale ? _mm256_loadu_ps(scale) : _mm256_set1_ps(1.0f);
+  const __m256 s1 = scale ? _mm256_loadu_ps(scale + 8) : _mm256_set1_ps(1.0f);
   for (int64_t k = 0; k < kc; ++k) {
     // The next panel reads the following bytes of the same rows (one stream per row): fetch them into L2.
     _mm_prefetch(static_cast<const char*>(p) + (k * ld + NR) * es, _MM_HINT_T1);
-    _mm256_store_ps(dst + k * NR, load8(p, dt, k * ld));
-    _mm256_store_ps(dst + k * NR + 8, load8(p, dt, k * ld + 8));
+    __m256 v0 = load8(p, dt, k * ld), v1 = load8(p, dt, k * ld + 8);
+    if (scale) {
+      v0 = _mm256_mul_ps(v0, s0);
+      v1 = _mm256_mul_ps(v1, s1);
+    }
+    _mm256_store_ps(dst + k * NR, v0);
+    _mm256_store_ps(dst + k * NR + 8, v1);
   }
 }
 
-// B(k, j) = p[j*ld + k], all 16 columns valid: 8 x 8 register transposes; returns the k handled (multiple of 8).
-__attribute__((always_inline)) inline int64_t pack_b_cols16(const void* p, DType dt, int64_t ld, int64_t kc,
-                                                            float* dst) {
+// B(k, j) = p[j*ld + k] (* scale[j]), all 16 columns valid: 8 x 8 register transposes; returns the k handled
+// (a multiple of 8).
+__attribute__((always_inline)) inline int64_t pack_b_cols16(const void* p, DType dt, int64_t ld, const float* scale,
+                                                            int64_t kc, float* dst) {
   const int64_t k8 = kc / 8 * 8;
   for (int64_t k = 0; k < k8; k += 8)
     for (int g = 0; g < 2; ++g) {
       __m256 r[8];
-      for (int j = 0; j < 8; ++j) r[j] = load8(p, dt, (g * 8 + j) * ld + k);
+      for (int j = 0; j < 8; ++j) {
+        r[j] = load8(p, dt, (g * 8 + j) * ld + k);
+        if (scale) r[j] = _mm256_mul_ps(r[j], _mm256_broadcast_ss(scale + g * 8 + j));
+      }
       transpose8(r);
       for (int q = 0; q < 8; ++q) _mm256_store_ps(dst + (k + q) * NR + g * 8, r[q]);
     }
   return k8;
 }
 
-// A(i, k) = p[i*ld + k], 6 rows valid: 8 x 8 transposes of 6 rows (+2 zero rows); returns the k handled.
-__attribute__((always_inline)) inline int64_t pack_a_rows6(const void* p, DType dt, int64_t ld, int64_t kc,
-                                                           float* dst) {
+// A(i, k) = p[i*ld + k] (* scale[i]), 6 rows valid: 8 x 8 transposes of 6 rows (+2 zero rows); returns the k
+// handled.
+__attribute__((always_inline)) inline int64_t pack_a_rows6(const void* p, DType dt, int64_t ld, const float* scale,
+                                                           int64_t kc, float* dst) {
   const int64_t k8 = kc / 8 * 8;
   for (int64_t k = 0; k < k8; k += 8) {
     __m256 r[8];
-    for (int i = 0; i < MR; ++i) r[i] = load8(p, dt, i * ld + k);
+    for (int i = 0; i < MR; ++i) {
+      r[i] = load8(p, dt, i * ld + k);
+      if (scale) r[i] = _mm256_mul_ps(r[i], _mm256_broadcast_ss(scale + i));
+    }
     r[6] = r[7] = _mm256_setzero_ps();
     transpose8(r);
     for (int q = 0; q < 8; ++q) {  // column q: lanes 0-5 are the 6 rows
@@ -234,36 +254,47 @@ __attribute__((always_inline)) inline int64_t pack_a_rows6(const void* p, DType 
   return k8;
 }
 
+bool packable(DType dt) { return dt == DType::F32 || dt == DType::F16 || dt == DType::BF16 || dt == DType::I8; }
+int64_t elem_size(DType dt) { return dt == DType::F32 ? 4 : dt == DType::I8 ? 1 : 2; }
+
 }  // namespace
 
-void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, int64_t kc, int nr, float* dst) {
-  if (nr != NR || !(dt == DType::F32 || dt == DType::F16 || dt == DType::BF16))
-    return pack_b_portable(p, dt, ld, trans, nullptr, kc, nr, dst);
-  const int64_t es = dt == DType::F32 ? 4 : 2;
+void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                 float* dst) {
+  if (nr != NR || !packable(dt)) return pack_b_portable(p, dt, ld, trans, scale, kc, nr, dst);
   if (!trans) {
-    if (dt == DType::F32) pack_b_rows16(p, DType::F32, ld, kc, dst);
-    else if (dt == DType::F16) pack_b_rows16(p, DType::F16, ld, kc, dst);
-    else pack_b_rows16(p, DType::BF16, ld, kc, dst);
-    return;
+    switch (dt) {
+      case DType::F32: return pack_b_rows16(p, DType::F32, ld, nullptr, kc, dst);
+      case DType::F16: return pack_b_rows16(p, DType::F16, ld, nullptr, kc, dst);
+      case DType::BF16: return pack_b_rows16(p, DType::BF16, ld, nullptr, kc, dst);
+      default: return pack_b_rows16(p, DType::I8, ld, scale, kc, dst);
+    }
   }
   int64_t done;
-  if (dt == DType::F32) done = pack_b_cols16(p, DType::F32, ld, kc, dst);
-  else if (dt == DType::F16) done = pack_b_cols16(p, DType::F16, ld, kc, dst);
-  else done = pack_b_cols16(p, DType::BF16, ld, kc, dst);
+  switch (dt) {
+    case DType::F32: done = pack_b_cols16(p, DType::F32, ld, nullptr, kc, dst); break;
+    case DType::F16: done = pack_b_cols16(p, DType::F16, ld, nullptr, kc, dst); break;
+    case DType::BF16: done = pack_b_cols16(p, DType::BF16, ld, nullptr, kc, dst); break;
+    default: done = pack_b_cols16(p, DType::I8, ld, scale, kc, dst); break;
+  }
   if (done < kc)
-    pack_b_portable(static_cast<const char*>(p) + done * es, dt, ld, true, nullptr, kc - done, nr, dst + done * NR);
+    pack_b_portable(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, true, scale, kc - done, nr,
+                    dst + done * NR);
 }
 
-void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, int mr, int64_t kc, float* dst) {
-  if (trans || mr != MR || !(dt == DType::F32 || dt == DType::F16 || dt == DType::BF16))
-    return pack_a_portable(p, dt, ld, trans, nullptr, mr, kc, dst);
-  const int64_t es = dt == DType::F32 ? 4 : 2;
+void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                 float* dst) {
+  if (trans || mr != MR || !packable(dt)) return pack_a_portable(p, dt, ld, trans, scale, mr, kc, dst);
   int64_t done;
-  if (dt == DType::F32) done = pack_a_rows6(p, DType::F32, ld, kc, dst);
-  else if (dt == DType::F16) done = pack_a_rows6(p, DType::F16, ld, kc, dst);
-  else done = pack_a_rows6(p, DType::BF16, ld, kc, dst);
+  switch (dt) {
+    case DType::F32: done = pack_a_rows6(p, DType::F32, ld, nullptr, kc, dst); break;
+    case DType::F16: done = pack_a_rows6(p, DType::F16, ld, nullptr, kc, dst); break;
+    case DType::BF16: done = pack_a_rows6(p, DType::BF16, ld, nullptr, kc, dst); break;
+    default: done = pack_a_rows6(p, DType::I8, ld, scale, kc, dst); break;
+  }
   if (done < kc)
-    pack_a_portable(static_cast<const char*>(p) + done * es, dt, ld, false, nullptr, mr, kc - done, dst + done * MR);
+    pack_a_portable(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, false, scale, mr, kc - done,
+                    dst + done * MR);
 }
 
 }  // namespace egopd::gemm_detail

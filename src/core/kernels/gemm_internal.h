@@ -87,8 +87,10 @@ void pack_b_portable(const void* p, DType dt, int64_t ld, bool trans, const floa
                      float* dst);
 void pack_a_portable(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                      float* dst);
-// AVX2/F16C versions for F32/F16/BF16 (I8 goes to the portable one).
-void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, int64_t kc, int nr, float* dst);
-void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, int mr, int64_t kc, float* dst);
+// AVX2/F16C versions (same contract; partial panels and K tails go to the portable ones).
+void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                 float* dst);
+void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                 float* dst);
 
 }  // namespace egopd::gemm_detail
