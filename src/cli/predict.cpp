@@ -26,6 +26,7 @@ PredictOptions read_predict_options(const Args& a) {
   if (a.has("guidance")) o.guidance = parse_guidance(a.get("guidance", ""));
   o.decode_chunk = a.get_int("decode-chunk", 0);
   if (a.has("decode-chunk") && o.decode_chunk < 1) throw Error(a.command() + ": --decode-chunk must be at least 1");
+  o.low_mem = a.flag("low-mem");
   o.template_path = a.get("template", "");
   o.out_dir = a.require("out");
   return o;

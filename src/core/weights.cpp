@@ -111,6 +111,20 @@ uint64_t WeightMap::total_bytes() const {
   return n;
 }
 
+uint64_t WeightMap::release(const std::string& prefix) const {
+  uint64_t n = 0;
+  // index_ is sorted, so the keys under a prefix are one contiguous range starting at lower_bound(prefix).
+  for (auto it = index_.lower_bound(prefix); it != index_.end(); ++it) {
+    const std::string& k = it->first;
+    if (k.compare(0, prefix.size(), prefix) != 0) break;
+    if (!prefix.empty() && k.size() > prefix.size() && k[prefix.size()] != '.') continue;  // "blocks.1" vs "blocks.10"
+    const StoredTensor* t = it->second;
+    if (t->file) t->file->release_pages(t->offset, t->nbytes);
+    n += t->nbytes;
+  }
+  return n;
+}
+
 const void* WeightMap::aligned_data(const StoredTensor& t) const {
   size_t align = std::max<size_t>(dtype_size(t.dtype), 1);
   if (reinterpret_cast<uintptr_t>(t.data) % align == 0) return t.data;

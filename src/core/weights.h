@@ -68,6 +68,10 @@ class WeightMap {
   // was not used.
   void check_all_used(const std::vector<std::string>& tolerated_substrings) const;
   uint64_t total_bytes() const;
+  // Drops the resident memory-mapped pages of every tensor named `prefix` or `prefix.*` (every tensor for ""):
+  // the data stays valid and is read back from the file on its next use. Low-memory mode calls it after each
+  // block so only the block running holds its weights in RAM. Returns the bytes of the tensors covered.
+  uint64_t release(const std::string& prefix) const;
 
   // Internal: mark a key as used, keep an aligned copy alive.
   void mark_used(const std::string& key) const { used_.insert(key); }

@@ -38,8 +38,8 @@ static void require_dir(const fs::path& p, const std::string& what) {
 }
 
 EgoPressureDiffPipeline::EgoPressureDiffPipeline(const std::string& model_dir, int64_t size,
-                                                 const std::string& template_path)
-    : dir_(model_dir), size_(size) {
+                                                 const std::string& template_path, bool low_mem)
+    : dir_(model_dir), size_(size), low_mem_(low_mem) {
   const fs::path d(model_dir);
   if (!fs::is_directory(d)) throw Error(model_dir + ": model directory does not exist");
   if (size < 64 || size % 64) throw Error("--size must be a positive multiple of 64 (got " + std::to_string(size) + ")");
@@ -47,22 +47,60 @@ EgoPressureDiffPipeline::EgoPressureDiffPipeline(const std::string& model_dir, i
   for (const char* part : {"unet", "vae", "image_encoder", "scheduler"}) require_dir(d / part, part);
   template_ = HandTemplate::load(template_path.empty() ? default_template_path() : template_path);
   renderer_ = std::make_unique<PressureRenderer>(template_, int(size));
-  unet_ = std::make_unique<UNetSpatioTemporal>((d / "unet").string());
-  vae_ = std::make_unique<TemporalVAE>((d / "vae").string());
-  image_encoder_ = std::make_unique<ClipVisionModelWithProjection>(
-      ClipVisionModelWithProjection::load_dir((d / "image_encoder").string()));
+  unet_cfg_ = UNetConfig::load((d / "unet").string());
   const fs::path pre = d / "feature_extractor" / "preprocessor_config.json";
   if (fs::exists(pre)) clip_norm_ = ClipImageNormalization::load(pre.string());
-  if (fs::is_directory(d / "text_encoder") && fs::is_directory(d / "tokenizer")) {
-    text_ = std::make_unique<ClipTextModel>(ClipTextModel::load_dir((d / "text_encoder").string()));
-    tokenizer_ = std::make_unique<ClipTokenizer>(ClipTokenizer::load_dir((d / "tokenizer").string()));
-    if (unet_->config().pifr_enabled && text_->hidden_size() != unet_->config().pifr_text_dim)
-      throw Error(model_dir + ": text_encoder hidden size " + std::to_string(text_->hidden_size()) +
-                  " does not match the U-Net's pifr.text_dim " + std::to_string(unet_->config().pifr_text_dim));
-  }
-  if (fs::is_directory(d / "mask_encoder")) masks_ = std::make_unique<MaskEncoder>((d / "mask_encoder").string());
-  if (image_encoder_->config().projection_dim != unet_->config().cross_attention_dim[0])
-    throw Error(model_dir + ": image_encoder projection_dim does not match the U-Net's cross_attention_dim");
+  has_text_ = fs::is_directory(d / "text_encoder") && fs::is_directory(d / "tokenizer");
+  has_masks_ = fs::is_directory(d / "mask_encoder");
+  if (low_mem_) return;  // each component is loaded (and checked) when its stage runs
+  load_unet();
+  load_vae();
+  load_image_encoder();
+  load_text();
+  load_masks();
+}
+
+void EgoPressureDiffPipeline::load_unet() const {
+  if (!unet_) unet_ = std::make_unique<UNetSpatioTemporal>((fs::path(dir_) / "unet").string());
+  unet_->set_release_weights_after_use(low_mem_);
+}
+
+void EgoPressureDiffPipeline::load_vae() const {
+  if (vae_) return;
+  vae_ = std::make_unique<TemporalVAE>((fs::path(dir_) / "vae").string());
+  if (low_mem_) vae_->set_temporal_tile_floats(kLowMemTileFloats);
+}
+
+void EgoPressureDiffPipeline::load_image_encoder() const {
+  if (image_encoder_) return;
+  image_encoder_ = std::make_unique<ClipVisionModelWithProjection>(
+      ClipVisionModelWithProjection::load_dir((fs::path(dir_) / "image_encoder").string()));
+  if (image_encoder_->config().projection_dim != unet_cfg_.cross_attention_dim[0])
+    throw Error(dir_ + ": image_encoder projection_dim does not match the U-Net's cross_attention_dim");
+}
+
+void EgoPressureDiffPipeline::load_text() const {
+  if (!has_text_ || text_) return;
+  const fs::path d(dir_);
+  text_ = std::make_unique<ClipTextModel>(ClipTextModel::load_dir((d / "text_encoder").string()));
+  tokenizer_ = std::make_unique<ClipTokenizer>(ClipTokenizer::load_dir((d / "tokenizer").string()));
+  if (unet_cfg_.pifr_enabled && text_->hidden_size() != unet_cfg_.pifr_text_dim)
+    throw Error(dir_ + ": text_encoder hidden size " + std::to_string(text_->hidden_size()) +
+                " does not match the U-Net's pifr.text_dim " + std::to_string(unet_cfg_.pifr_text_dim));
+}
+
+void EgoPressureDiffPipeline::load_masks() const {
+  if (has_masks_ && !masks_) masks_ = std::make_unique<MaskEncoder>((fs::path(dir_) / "mask_encoder").string());
+}
+
+void EgoPressureDiffPipeline::drop() const {
+  if (!low_mem_) return;
+  unet_.reset();
+  vae_.reset();
+  image_encoder_.reset();
+  text_.reset();
+  tokenizer_.reset();
+  masks_.reset();
 }
 
 PipelineSettings EgoPressureDiffPipeline::settings_from_defaults() const {
@@ -97,18 +135,35 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
   if (frames.ndim() != 4 || frames.dim(1) != 3 || frames.dim(2) != S || frames.dim(3) != S)
     throw Error("frames must be [F, 3, " + std::to_string(S) + ", " + std::to_string(S) + "], got " +
                 frames.shape().str());
+  if (masks) {
+    if (!has_masks_) throw Error(dir_ + ": the model has no mask_encoder/, so --masks cannot be used");
+    if (masks->dim(0) != F) throw Error("mask count " + std::to_string(masks->dim(0)) + " != frame count " + std::to_string(F));
+  }
+  StageTimes* load_times = low_mem_ ? times : nullptr;  // loading is a stage of its own only when it happens here
   Shared sh;
   sh.frames = F;
+  {
+    ScopedStage ld(load_times, "load");
+    load_vae();
+  }
   {
     ScopedStage st(times, "vae_encode");
     Tensor r = vae_->encode_mean(frames);  // [F, 4, h, w], mode(), unscaled
     sh.rgb_latents = r.reshaped({1, F, r.dim(1), r.dim(2), r.dim(3)});
   }
+  drop();
   if (masks) {
-    if (!masks_) throw Error(dir_ + ": the model has no mask_encoder/, so --masks cannot be used");
-    if (masks->dim(0) != F) throw Error("mask count " + std::to_string(masks->dim(0)) + " != frame count " + std::to_string(F));
+    {
+      ScopedStage ld(load_times, "load");
+      load_masks();
+    }
     ScopedStage st(times, "mask_encoder");
     sh.mask_features = masks_->forward(*masks);
+  }
+  drop();
+  {
+    ScopedStage ld(load_times, "load");
+    load_image_encoder();
   }
   {
     ScopedStage st(times, "clip_image");
@@ -116,6 +171,7 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
     Tensor emb = image_encoder_->forward(pix).image_embeds;
     sh.prototype = emb.reshaped({1, 1, emb.dim(1)});
   }
+  drop();
   sh.sampler = make_run_sampler(dir_, s.sampler);
   const int steps = s.steps > 0 ? s.steps : (s.sampler.empty() && defaults_.steps > 0 ? defaults_.steps
                                                                                       : sh.sampler->default_steps());
@@ -147,13 +203,22 @@ Tensor EgoPressureDiffPipeline::encode_text(const std::optional<std::string>& pr
                                             StageTimes* times) const {
   if (truncated) *truncated = false;
   if (!prompt) return Tensor();
-  if (!text_) throw Error(dir_ + ": the model has no text_encoder/ and tokenizer/, so a prompt cannot be used");
-  if (!unet_->config().pifr_enabled) throw Error(dir_ + ": the U-Net has no PIFR layers, so a prompt has no effect");
-  ScopedStage st(times, "text_encoder");
-  TokenizedText t = tokenizer_->encode(*prompt);
-  if (truncated) *truncated = t.truncated;
-  IdTensor ids{Shape{1, int64_t(t.ids.size())}, t.ids};
-  return text_->forward(ids).last_hidden_state;  // [1, 77, T]
+  if (!has_text_) throw Error(dir_ + ": the model has no text_encoder/ and tokenizer/, so a prompt cannot be used");
+  if (!unet_cfg_.pifr_enabled) throw Error(dir_ + ": the U-Net has no PIFR layers, so a prompt has no effect");
+  {
+    ScopedStage ld(low_mem_ ? times : nullptr, "load");
+    load_text();
+  }
+  Tensor out;
+  {
+    ScopedStage st(times, "text_encoder");
+    TokenizedText t = tokenizer_->encode(*prompt);
+    if (truncated) *truncated = t.truncated;
+    IdTensor ids{Shape{1, int64_t(t.ids.size())}, t.ids};
+    out = text_->forward(ids).last_hidden_state;  // [1, 77, T]
+  }
+  drop();
+  return out;
 }
 
 EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, const Tensor& text,
@@ -165,6 +230,11 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
   const int64_t B = cfg ? 2 : 1;  // [uncond, cond]: zero prototype and zero RGB latents in the unconditional half
   const Sampler& sampler = *sh.sampler;
   const int steps = sampler.num_steps();
+  StageTimes* load_times = low_mem_ ? times : nullptr;
+  {
+    ScopedStage ld(load_times, "load");
+    load_unet();
+  }
 
   Tensor ehs = Tensor::zeros({B, 1, D});
   std::memcpy(ehs.data() + (B - 1) * D, sh.prototype.data(), size_t(D) * sizeof(float));
@@ -211,10 +281,17 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
     if (on_step) on_step(i + 1, steps, seconds_since(t0));
   }
   res.latents = x;
+  drop();
+  {
+    ScopedStage ld(load_times, "load");
+    load_vae();
+  }
   {
     ScopedStage st(times, "vae_decode");
-    res.decoded = vae_->decode_latents(x.reshaped({F, lc, h, w}), F, s.decode_chunk);
+    const int64_t chunk = s.decode_chunk > 0 ? s.decode_chunk : (low_mem_ ? kLowMemDecodeChunk : 0);
+    res.decoded = vae_->decode_latents(x.reshaped({F, lc, h, w}), F, chunk);
   }
+  drop();
   {
     ScopedStage st(times, "postprocess");
     const int64_t img = 3 * size_ * size_;

@@ -40,8 +40,15 @@ struct PipelineSettings {
   uint64_t seed = 0;
   float min_guidance = 1, max_guidance = 1;
   float fps = 5, motion_bucket_id = 127, noise_aug_strength = 0.02f;
-  int64_t decode_chunk = 0;  // 0 = all frames
+  int64_t decode_chunk = 0;  // 0 = all frames (low-memory mode: kLowMemDecodeChunk)
 };
+
+// Low-memory mode decodes this many frames per VAE call unless decode_chunk says otherwise. Like diffusers'
+// decode_chunk_size, chunking changes the decoded frames (vae.md §5.2: the temporal layers see only the frames of a
+// chunk); the latents are unaffected.
+constexpr int64_t kLowMemDecodeChunk = 2;
+// Low-memory mode bounds the decoder's temporal pixel tiles to this many floats (no effect on the result).
+constexpr int64_t kLowMemTileFloats = int64_t(1) << 20;
 
 // step (1-based), steps, seconds of that step
 using StepCallback = std::function<void(int, int, double)>;
@@ -50,12 +57,18 @@ class EgoPressureDiffPipeline {
  public:
   // Loads every component of an EgoPressureDiff model directory (weights.md §1) for S x S frames. text_encoder/,
   // tokenizer/ and mask_encoder/ are optional (without them only no-text mode / no masks are available).
-  EgoPressureDiffPipeline(const std::string& model_dir, int64_t size, const std::string& template_path = "");
+  // low_mem: components are loaded right before the stage that uses them and dropped after it (VAE, mask encoder and
+  // CLIP towers in encode() / encode_text(); the U-Net for the sampler loop, paging each block's weights out after
+  // it runs; the VAE again for a chunked decode), so peak memory is about the largest single component plus
+  // activations. Loading time then counts in the "load" stage of each call.
+  EgoPressureDiffPipeline(const std::string& model_dir, int64_t size, const std::string& template_path = "",
+                          bool low_mem = false);
 
   const ModelDefaults& defaults() const { return defaults_; }
   int64_t size() const { return size_; }
-  bool has_text_encoder() const { return text_ != nullptr; }
-  bool has_mask_encoder() const { return masks_ != nullptr; }
+  bool has_text_encoder() const { return has_text_; }
+  bool has_mask_encoder() const { return has_masks_; }
+  bool low_mem() const { return low_mem_; }
   const HandTemplate& hand_template() const { return template_; }
   const PressureRenderer& renderer() const { return *renderer_; }
   // settings filled from the model defaults where the caller left them at their defaults
@@ -88,18 +101,31 @@ class EgoPressureDiffPipeline {
              StageTimes* times);
 
  private:
+  // Each loads one component (with its cross-checks against the U-Net config) unless it is loaded already; drop()
+  // releases every component again in low-memory mode and does nothing otherwise. Const because encode() and
+  // encode_text() load lazily in low-memory mode.
+  void load_unet() const;
+  void load_vae() const;
+  void load_image_encoder() const;
+  void load_text() const;
+  void load_masks() const;
+  void drop() const;
+
   std::string dir_;
   int64_t size_;
+  bool low_mem_ = false, has_text_ = false, has_masks_ = false;
   ModelDefaults defaults_;
+  UNetConfig unet_cfg_;
   HandTemplate template_;
   std::unique_ptr<PressureRenderer> renderer_;
-  std::unique_ptr<UNetSpatioTemporal> unet_;
-  std::unique_ptr<TemporalVAE> vae_;
-  std::unique_ptr<ClipVisionModelWithProjection> image_encoder_;
+  // mutable: loaded on demand and dropped inside const calls in low-memory mode
+  mutable std::unique_ptr<UNetSpatioTemporal> unet_;
+  mutable std::unique_ptr<TemporalVAE> vae_;
+  mutable std::unique_ptr<ClipVisionModelWithProjection> image_encoder_;
   ClipImageNormalization clip_norm_;
-  std::unique_ptr<ClipTextModel> text_;
-  std::unique_ptr<ClipTokenizer> tokenizer_;
-  std::unique_ptr<MaskEncoder> masks_;
+  mutable std::unique_ptr<ClipTextModel> text_;
+  mutable std::unique_ptr<ClipTokenizer> tokenizer_;
+  mutable std::unique_ptr<MaskEncoder> masks_;
 };
 
 }  // namespace egopd

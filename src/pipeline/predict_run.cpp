@@ -132,7 +132,8 @@ Prepared prepare(const PredictOptions& o) {
     }
     say("loading model %s (%lldx%lld)", p.model_dir.c_str(), static_cast<long long>(o.size),
         static_cast<long long>(o.size));
-    p.pipe = std::make_unique<EgoPressureDiffPipeline>(p.model_dir, o.size, o.template_path);
+    if (o.low_mem) say("low-memory mode: components are loaded one at a time and released after use");
+    p.pipe = std::make_unique<EgoPressureDiffPipeline>(p.model_dir, o.size, o.template_path, o.low_mem);
   }
   const EgoPressureDiffPipeline& pipe = *p.pipe;
   const HandTemplate& t = pipe.hand_template();
@@ -247,6 +248,8 @@ ojson summary_json(const PredictOptions& o, const Prepared& p, const EgoPressure
   j["frames"] = sh.frames;
   j["size"] = p.pipe->size();
   j["guidance"] = {p.settings.min_guidance, p.settings.max_guidance};
+  j["low_mem"] = o.low_mem;
+  j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : (o.low_mem ? kLowMemDecodeChunk : sh.frames);
   j["model_dir"] = p.model_dir;
   j["model_synthetic"] = p.builtin_model;
   j["video"] = p.builtin_clip ? ojson("sample_clip.mp4 (built-in synthetic clip)") : ojson(o.video);
@@ -341,16 +344,21 @@ std::string variant_folder_name(const std::string& field, const std::string& val
   return out;
 }
 
-std::string default_model_dir(const std::string& out_dir) {
+std::string cache_root() {
   std::string cache;
   if (const char* x = std::getenv("XDG_CACHE_HOME"); x && *x) cache = x;
   else if (const char* h = std::getenv("HOME"); h && *h) cache = (fs::path(h) / ".cache").string();
-  if (!cache.empty()) {
-    const fs::path root = fs::path(cache) / "egopd";
-    std::error_code ec;
-    fs::create_directories(root, ec);
-    if (fs::is_directory(root) && ::access(root.c_str(), W_OK) == 0) return (root / kBuiltinName).string();
-  }
+  if (cache.empty()) return "";
+  const fs::path root = fs::path(cache) / "egopd";
+  std::error_code ec;
+  fs::create_directories(root, ec);
+  if (fs::is_directory(root) && ::access(root.c_str(), W_OK) == 0) return root.string();
+  return "";
+}
+
+std::string default_model_dir(const std::string& out_dir) {
+  const std::string root = cache_root();
+  if (!root.empty()) return (fs::path(root) / kBuiltinName).string();
   return (fs::path(out_dir) / ".egopd-default-model").string();
 }
 

@@ -23,7 +23,8 @@ struct PredictOptions {
   int64_t frames = 0;  // 0: the model's default (16)
   int64_t size = 256;
   std::optional<std::pair<float, float>> guidance;  // min, max; default: the model's
-  int64_t decode_chunk = 0;                         // 0: all frames at once
+  int64_t decode_chunk = 0;                         // 0: all frames at once (--low-mem: kLowMemDecodeChunk)
+  bool low_mem = false;                             // load components one at a time (EgoPressureDiffPipeline)
   std::string template_path;                        // empty: the shipped template
   std::string out_dir;
 };
@@ -47,6 +48,8 @@ std::string variant_folder_name(const std::string& field, const std::string& for
 // Folder of the built-in synthetic model: $XDG_CACHE_HOME/egopd/..., else ~/.cache/egopd/..., else (not writable)
 // <out_dir>/.egopd-default-model. Created on first use.
 std::string default_model_dir(const std::string& out_dir);
+// egopd's cache folder ($XDG_CACHE_HOME/egopd, else ~/.cache/egopd), created; empty when neither is writable.
+std::string cache_root();
 
 // Run one prediction and write its outputs into o.out_dir. Returns 0.
 int run_predict(const PredictOptions& o);

@@ -120,6 +120,9 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
                 std::to_string(down_factor));
   const int64_t ted = cfg_.time_embed_dim(), c0 = cfg_.block_out_channels[0], ad = cfg_.addition_time_embed_dim;
   arena_.reset();
+  const auto done = [&](const std::string& prefix) {
+    if (release_after_use_) weights_->release(prefix);
+  };
   std::optional<ScopedStage> stage;
   stage.emplace(profile_, "embeddings");
 
@@ -160,6 +163,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       x = y;
       skips.push_back(x);
     }
+    done("down_blocks." + std::to_string(&d - down_.data()));
   }
   stage.emplace(profile_, "resblock");
   x = mid_res0_.forward(x, B, temb_silu.data(), arena_);
@@ -167,6 +171,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
   x = mid_attn_.forward(x, B, cond.transformers[ti++], arena_);
   stage.emplace(profile_, "resblock");
   x = mid_res1_.forward(x, B, temb_silu.data(), arena_);
+  done("mid_block");
 
   for (const auto& u : up_) {
     for (size_t j = 0; j < u.resnets.size(); ++j) {
@@ -190,6 +195,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       u.upsampler.forward(up.data(), N, 2 * H, 2 * W, y.data());
       x = y;
     }
+    done("up_blocks." + std::to_string(&u - up_.data()));
   }
 
   stage.emplace(profile_, "conv_in_out");
@@ -197,6 +203,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
   norm_out_.forward(x.data(), a.data(), N, 1, h * w, /*silu=*/true);
   Tensor out({B, F, cfg_.out_channels, h, w});
   conv_out_.forward(a.data(), N, h, w, out.data());
+  done("");  // embeddings, conv_in, conv_out and anything prepare() touched
   return out;
 }
 

@@ -43,6 +43,9 @@ class UNetSpatioTemporal {
   // Attach a per-block-type time breakdown (null: off).
   void set_profile(StageTimes* times) { profile_ = times; }
   const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
+  // Low-memory mode: forward() drops the mapped pages of each block's weights once the block has run
+  // (WeightMap::release), so about one block's weights are resident at a time; the next step reads them again.
+  void set_release_weights_after_use(bool on) { release_after_use_ = on; }
 
  private:
   struct DownBlock {
@@ -70,6 +73,7 @@ class UNetSpatioTemporal {
   std::vector<UpBlock> up_;
   Arena arena_;
   StageTimes* profile_ = nullptr;
+  bool release_after_use_ = false;
 };
 
 }  // namespace egopd
