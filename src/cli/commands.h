@@ -22,6 +22,7 @@ int bench_clip_text(const Args& a);
 int bench_unet(const Args& a);
 int bench_vae_encode(const Args& a);
 int bench_vae_decode(const Args& a);
+int bench_pipeline(const Args& a);
 // f32 | f16 | bf16 -> DType (error naming the option otherwise)
 DType parse_weight_dtype(const std::string& s, const std::string& option);
 

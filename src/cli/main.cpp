@@ -26,6 +26,9 @@ struct BenchTarget {
 };
 
 const BenchTarget kBenchTargets[] = {
+    {"pipeline", bench_pipeline,
+     "[--config svd-xt|tiny] [--steps 25|8|4] [--frames 16] [--size 256] [--dtype f16|f32|bf16|q8] [--low-mem]\n"
+     "      [--decode-chunk N] [--model DIR]   one whole prediction (25 steps: Euler teacher, else AnimateLCM student)"},
     {"unet", bench_unet,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--pifr] [--weights DIR]"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
@@ -61,13 +64,15 @@ const Command kCommands[] = {
     {"predict", cmd_predict,
      "egopd predict [--model DIR --video CLIP.mp4|FRAMES_DIR] [--masks DIR] [--meta META.json | --prompt TEXT]\n"
      "              [--sampler euler|lcm] [--steps N] [--seed 0] [--frames 16] [--size 256] [--guidance MIN,MAX]\n"
-     "              [--decode-chunk N] [--template FILE] --out DIR\n"
+     "              [--decode-chunk N] [--low-mem] [--template FILE] --out DIR\n"
      "  Grasp pressure of a clip: F frames sampled uniformly, squashed to SIZE x SIZE; masks: one image per sampled\n"
      "  frame (> 127 = hand). Prompt: --prompt verbatim, or built from --meta fields; neither: no-text mode.\n"
      "  Sampler/steps default to the model's scheduler (--sampler lcm on an Euler model: 4 steps). Writes into DIR:\n"
      "  heatmap_NNN.png, side_by_side.mp4 (RGB | heatmap, 5 fps), taxels.csv (N), summary.json.\n"
      "  Without --model / --video: a built-in tiny SYNTHETIC model (random weights, cached in $XDG_CACHE_HOME/egopd\n"
-     "  or ~/.cache/egopd) and a synthetic sample clip (saved as DIR/sample_clip.mp4): a demo, not real pressures."},
+     "  or ~/.cache/egopd) and a synthetic sample clip (saved as DIR/sample_clip.mp4): a demo, not real pressures.\n"
+     "  --low-mem: load one component at a time and release it after use, page U-Net weights out block by block,\n"
+     "  decode 2 frames per VAE call (unless --decode-chunk; chunking changes the decoded frames, not the latents)."},
     {"counterfactual", cmd_counterfactual,
      "egopd counterfactual --vary FIELD=v1,v2,...,omit [predict options] --out DIR\n"
      "  The same clip and seed under prompt variants of one field (obj_name, weight, material, gender, age,\n"
@@ -77,7 +82,7 @@ const Command kCommands[] = {
     {"bench", cmd_bench,
      "egopd bench TARGET [options] [--threads T] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
-     "  Targets: gemm, conv2d."},
+     "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d."},
 };
 
 int cmd_bench(const Args& a) {
