@@ -6,6 +6,7 @@
 #include "core/error.h"
 #include "core/kernels/channel_ops.h"
 #include "core/kernels/elementwise.h"
+#include "core/kernels/layout.h"
 #include "unet3d/resblock.h"
 
 namespace egopd {
@@ -85,16 +86,13 @@ Tensor TransformerSpatioTemporal::forward(const Tensor& x, int64_t videos, const
   const int64_t rows = N * L;
   const size_t mark = arena.mark();
 
-  // z = proj_in(Tok(GN(x))): per frame, the GEMM reads the [C, L] normalised frame transposed -> [L, C]
+  // z = proj_in(Tok(GN(x))): [N, C, L] -> [N, L, C] -> [N*L, C]; one GEMM over every token of every frame
   Tensor g = arena.take({N, C, L});
   norm.forward(x.data(), g.data(), N, 1, L, false);
+  Tensor tok = arena.take({rows, C});
+  transpose_batched(g.data(), tok.data(), N, C, L);
   Tensor z = arena.take({rows, C});
-  for (int64_t n = 0; n < N; ++n) {
-    Epilogue ep;
-    ep.bias = proj_in.bias.data();
-    gemm(L, C, C, f32_operand(g.data() + n * C * L, L, /*trans=*/true), weight_operand_t(proj_in.weight, C),
-         z.data() + n * L * C, C, ep);
-  }
+  proj_in.forward(tok.data(), rows, z.data());
 
   // pe [F, C] = time_pos_embed(Sin(f, C)), f = frame index
   Tensor frame_idx({F}), sin_f = arena.take({F, C}), pe_h = arena.take({F, 4 * C}), pe = arena.take({F, C});
@@ -139,16 +137,10 @@ Tensor TransformerSpatioTemporal::forward(const Tensor& x, int64_t videos, const
     std::swap(z, zt);
   }
 
-  // out = x + Tok⁻¹(proj_out(z)): per frame [C, L] = W [C, C] · z_nᵀ, bias per row, accumulated onto x
+  // out = x + Tok⁻¹(proj_out(z)): [N*L, C] -> [N, C, L], added onto the input
+  proj_out.forward(z.data(), rows, tok.data());
   Tensor out = x.clone();
-  for (int64_t n = 0; n < N; ++n) {
-    Epilogue ep;
-    ep.bias = proj_out.bias.data();
-    ep.bias_per_row = true;
-    ep.accumulate = true;
-    const Operand w{proj_out.weight.data, proj_out.weight.dtype, C, false, proj_out.weight.scale};
-    gemm(C, L, C, w, f32_operand(z.data() + n * L * C, C, /*trans=*/true), out.data() + n * C * L, L, ep);
-  }
+  transpose_add_batched(tok.data(), out.data(), N, L, C);
   arena.release(mark);
   return out;
 }

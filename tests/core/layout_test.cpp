@@ -50,5 +50,22 @@ TEST(Layout, FramesToSequencesAndBack) {
   }
 }
 
+TEST(Layout, TransposeAddOntoResidual) {
+  for (auto [batch, rows, cols] : {std::tuple<int64_t, int64_t, int64_t>{1, 1, 1}, {2, 33, 7}, {3, 64, 40}, {1, 1, 65}}) {
+    SCOPED_TRACE(testing::Message() << batch << "x" << rows << "x" << cols);
+    const std::vector<float> src = iota_values(batch * rows * cols);
+    std::vector<float> dst(src.size());
+    for (size_t i = 0; i < dst.size(); ++i) dst[i] = 0.5f * float(i % 13) - 3.0f;
+    const std::vector<float> before = dst;
+    transpose_add_batched(src.data(), dst.data(), batch, rows, cols);
+    for (int64_t b = 0; b < batch; ++b)
+      for (int64_t r = 0; r < rows; ++r)
+        for (int64_t c = 0; c < cols; ++c) {
+          const int64_t d = (b * cols + c) * rows + r;
+          ASSERT_EQ(dst[d], before[d] + src[(b * rows + r) * cols + c]);
+        }
+  }
+}
+
 }  // namespace
 }  // namespace egopd

@@ -4,9 +4,10 @@
 
 namespace egopd {
 
-void transpose_batched(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
+template <bool kAdd>
+static void transpose_tiles(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
   constexpr int64_t T = 32;  // tile so both sides stay in cache
-#pragma omp parallel for collapse(2) schedule(static)
+#pragma omp parallel for collapse(2) schedule(static) if (batch * rows * cols > 32768)
   for (int64_t b = 0; b < batch; ++b) {
     for (int64_t r0 = 0; r0 < rows; r0 += T) {
       const float* s = src + b * rows * cols;
@@ -15,10 +16,21 @@ void transpose_batched(const float* src, float* dst, int64_t batch, int64_t rows
       for (int64_t c0 = 0; c0 < cols; c0 += T) {
         const int64_t c1 = std::min(cols, c0 + T);
         for (int64_t r = r0; r < r1; ++r)
-          for (int64_t c = c0; c < c1; ++c) d[c * rows + r] = s[r * cols + c];
+          for (int64_t c = c0; c < c1; ++c) {
+            if constexpr (kAdd) d[c * rows + r] += s[r * cols + c];
+            else d[c * rows + r] = s[r * cols + c];
+          }
       }
     }
   }
+}
+
+void transpose_batched(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
+  transpose_tiles<false>(src, dst, batch, rows, cols);
+}
+
+void transpose_add_batched(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
+  transpose_tiles<true>(src, dst, batch, rows, cols);
 }
 
 // [B*F, L, C] <-> [B*L, F, C]: both are row copies of C floats.
