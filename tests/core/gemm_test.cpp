@@ -240,17 +240,20 @@ TEST_P(GemmTest, SerialInsideParallelRegion) {
 }
 
 TEST_P(GemmTest, OneThreadAndTwoThreadsAgree) {
-  // Thread count changes only the partition of the work, never the summation order of an element.
-  std::mt19937 rng(7);
-  StoredMatrix A(200, 300, false, DType::F32, true, rng), B(300, 150, true, DType::F16, false, rng);
-  std::vector<float> c1(200 * 150), c2(200 * 150);
+  // Thread count changes only the partition of the work, never the summation order of an element. N = 150:
+  // the threads split columns; N = 40: they split rows (shared B blocks over two K blocks).
   const int saved = num_threads();
-  set_num_threads(1);
-  gemm(200, 150, 300, A.operand(), B.operand(), c1.data(), 150);
-  set_num_threads(2);
-  gemm(200, 150, 300, A.operand(), B.operand(), c2.data(), 150);
+  for (int64_t N : {150, 40}) {
+    std::mt19937 rng(7);
+    StoredMatrix A(200, 700, false, DType::F32, true, rng), B(700, N, true, DType::F16, false, rng);
+    std::vector<float> c1(size_t(200 * N)), c2(size_t(200 * N));
+    set_num_threads(1);
+    gemm(200, N, 700, A.operand(), B.operand(), c1.data(), N);
+    set_num_threads(2);
+    gemm(200, N, 700, A.operand(), B.operand(), c2.data(), N);
+    EXPECT_EQ(c1, c2) << "N = " << N;
+  }
   set_num_threads(saved);
-  EXPECT_EQ(c1, c2);
 }
 
 TEST(GemmActTest, ApplyActMatchesDoubleReference) {

@@ -101,11 +101,11 @@ void run_gemm(const GemmJob& job) {
   const double flops = 2.0 * double(M) * double(job.segments * job.seg_cols) * double(K);
   int threads = omp_in_parallel() ? 1 : num_threads();
   if (flops < kSerialFlops) threads = 1;
-  // Split the larger dimension across threads. Splitting M shares each packed B block (one barrier per block);
-  // splitting N (convolutions: cout rows x frames*pixels columns) lets every thread pack its own B panels and
-  // reuse each of them over all rows, with no barrier.
-  const int64_t ncols = job.segments * job.seg_cols;
-  const bool split_m = M >= ncols ? mpanels >= threads : npanels < int64_t(threads) * 2;
+  // Split N across threads whenever each thread gets a few column panels: every thread packs its own B panels and
+  // reuses them over all rows, with no barrier and no cache lines shared between cores (measured faster than
+  // splitting M on every U-Net shape, linear and convolution). Splitting M (shared B blocks, one barrier per
+  // block, dynamic row chunks) is for narrow outputs.
+  const bool split_m = npanels < int64_t(threads) * 4 && mpanels >= npanels;
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
   const bool direct_a = job.a->direct != nullptr;
