@@ -93,7 +93,8 @@ int bench_unet(const Args& a) {
   r.extra["config"] = config;
   r.extra["frames"] = frames;
   r.extra["latent"] = std::to_string(h) + "x" + std::to_string(w);
-  r.extra["dtype"] = dtype_name(dtype);
+  const StoredTensor* probe = weights->find("conv_in.weight");  // with --weights: what the files hold
+  r.extra["dtype"] = dtype_name(probe ? probe->dtype : dtype);
   r.extra["pifr"] = pifr;
   r.extra["evaluations"] = evals;
   r.extra["gflop_pytorch_count"] = fl.total / 1e9;

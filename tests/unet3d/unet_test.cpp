@@ -145,3 +145,76 @@ TEST(UNetSvdXt, ParameterTreeAndFlops) {
 
 }  // namespace
 }  // namespace egopd
+
+namespace egopd {
+namespace {
+
+double max_abs_diff(const float* a, const float* b, int64_t n) {
+  double d = 0;
+  for (int64_t i = 0; i < n; ++i) d = std::max(d, double(std::fabs(a[i] - b[i])));
+  return d;
+}
+
+// Batch 2 evaluates each video independently: the same as two batch-1 evaluations.
+TEST(UNetForward, BatchOfTwoEqualsTwoSingleVideos) {
+  GoldenCase c = load_golden_case(golden("unet_pifr_random"));
+  UNetSpatioTemporal unet(c.model_dir());
+  const Tensor& s1 = c.input("sample");
+  const Tensor& e1 = c.input("encoder_hidden_states");
+  const Tensor& t1 = c.input("text_tokens");
+  const Tensor& ids1 = c.input("added_time_ids");
+  auto second = [](const Tensor& t, float scale, float shift) {
+    Tensor o = t.clone();
+    for (int64_t i = 0; i < o.numel(); ++i) o[i] = o[i] * scale + shift;
+    return o;
+  };
+  Tensor s2 = second(s1, -0.7f, 0.1f), e2 = second(e1, 1.3f, -0.2f), t2 = second(t1, 0.5f, 0.05f);
+  Tensor ids2 = Tensor::from({1, 3}, {6.0f, 30.0f, 0.1f});
+  auto stack = [](const Tensor& a, const Tensor& b) {
+    std::vector<int64_t> shape = a.shape().vec();
+    shape[0] = 2;
+    Tensor o{Shape(shape)};
+    std::copy(a.data(), a.data() + a.numel(), o.data());
+    std::copy(b.data(), b.data() + b.numel(), o.data() + a.numel());
+    return o;
+  };
+  Tensor sb = stack(s1, s2), eb = stack(e1, e2), tb = stack(t1, t2), idb = stack(ids1, ids2);
+  const float t = c.input("timestep")[0];
+  Tensor both = unet.forward(sb, t, idb, unet.prepare(eb, &tb));
+  Tensor one = unet.forward(s1, t, ids1, unet.prepare(e1, &t1));
+  Tensor two = unet.forward(s2, t, ids2, unet.prepare(e2, &t2));
+  const int64_t n = one.numel();
+  EXPECT_LT(max_abs_diff(both.data(), one.data(), n), 1e-5);
+  EXPECT_LT(max_abs_diff(both.data() + n, two.data(), n), 1e-5);
+  EXPECT_GT(max_abs_diff(one.data(), two.data(), n), 1e-2);  // the two videos really differ
+}
+
+// One frame: the temporal layers see a sequence of length 1 (zero-padded temporal convolutions).
+TEST(UNetForward, SingleFrameClip) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetSpatioTemporal unet(c.model_dir());
+  Tensor s({1, 1, 8, 16, 16});
+  std::copy(c.input("sample").data(), c.input("sample").data() + s.numel(), s.data());
+  Tensor v = unet.forward(s, c.input("timestep")[0], c.input("added_time_ids"),
+                          unet.prepare(c.input("encoder_hidden_states"), nullptr));
+  EXPECT_EQ(v.shape(), (Shape{1, 1, 4, 16, 16}));
+  for (int64_t i = 0; i < v.numel(); ++i) ASSERT_TRUE(std::isfinite(v[i]));
+}
+
+// A context of several tokens runs the full cross-attention. Two identical tokens give softmax weights 1/2 on equal
+// values, i.e. exactly the single-token result that the folded path computes: the two paths must agree.
+TEST(UNetForward, MultiTokenContextMatchesFoldedSingleToken) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetSpatioTemporal unet(c.model_dir());
+  const Tensor& e = c.input("encoder_hidden_states");
+  Tensor e2({1, 2, e.dim(2)});
+  std::copy(e.data(), e.data() + e.numel(), e2.data());
+  std::copy(e.data(), e.data() + e.numel(), e2.data() + e.numel());
+  const float t = c.input("timestep")[0];
+  Tensor folded = unet.forward(c.input("sample"), t, c.input("added_time_ids"), unet.prepare(e, nullptr));
+  Tensor full = unet.forward(c.input("sample"), t, c.input("added_time_ids"), unet.prepare(e2, nullptr));
+  EXPECT_LT(max_abs_diff(folded.data(), full.data(), folded.numel()), 2e-5);
+}
+
+}  // namespace
+}  // namespace egopd
