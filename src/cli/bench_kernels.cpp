@@ -64,19 +64,6 @@ std::vector<float> random_floats(size_t n, uint32_t seed) {
   return v;
 }
 
-// Median wall time of `repeat` calls after one warm-up call.
-template <class F>
-double median_seconds(int64_t repeat, F&& call) {
-  call();
-  std::vector<double> t;
-  for (int64_t r = 0; r < repeat; ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    call();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
-}
 
 }  // namespace
 
@@ -93,7 +80,7 @@ int bench_gemm(const Args& a) {
   const BenchWeights B(size_t(K * N), dt, 2);
   std::vector<float> C(size_t(M * N));
   const Operand bop{B.data(), dt, trans_b ? K : N, trans_b, nullptr};  // W [N,K] with --trans-b, else [K,N]
-  const double s = median_seconds(repeat, [&] { gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N); });
+  const double s = median_call_seconds(repeat, true, [&] { gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N); });
 
   BenchReport r;
   r.target = "gemm";
@@ -129,7 +116,7 @@ int bench_conv2d(const Args& a) {
   const BenchWeights W(size_t(cout * cin * kernel * kernel), dt, 4);
   std::vector<float> y(size_t(n * cout * oh * ow));
   const Operand wop{W.data(), dt, cin * kernel * kernel, false, nullptr};
-  const double s = median_seconds(repeat, [&] { conv2d(x.data(), n, h, w, wop, bias.data(), g, y.data()); });
+  const double s = median_call_seconds(repeat, true, [&] { conv2d(x.data(), n, h, w, wop, bias.data(), g, y.data()); });
 
   BenchReport r;
   r.target = "conv2d";

@@ -1,4 +1,7 @@
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <vector>
 #include <cstdlib>
 
 #include "cli/commands.h"
@@ -11,6 +14,18 @@ double peak_gflops(int threads) {
   double per_core = 32.0 * 3.07;
   if (const char* e = std::getenv("EGOPD_PEAK_GFLOPS")) per_core = std::atof(e) > 0 ? std::atof(e) : per_core;
   return per_core * threads;
+}
+
+double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call) {
+  if (warmup) call();
+  std::vector<double> t;
+  for (int64_t r = 0; r < std::max<int64_t>(repeat, 1); ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    call();
+    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
 }
 
 void print_bench_report(const BenchReport& r, bool json) {

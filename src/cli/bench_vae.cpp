@@ -59,18 +59,6 @@ Tensor pattern(const Shape& s, float amp) {  // deterministic values in [-amp, a
   return t;
 }
 
-// Median seconds of `repeat` calls (no warm-up: one full-size call is long enough to amortise first touches).
-template <class F>
-double median_seconds(int64_t repeat, F&& call) {
-  std::vector<double> t;
-  for (int64_t r = 0; r < repeat; ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    call();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
-}
 
 void describe_output(const Tensor& y, BenchReport& r) {
   double sq = 0;
@@ -107,12 +95,12 @@ int run_vae_bench(const Args& a, bool decode) {
   if (decode) {
     const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
     const Tensor latents = pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f);
-    r.seconds = median_seconds(o.repeat, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
+    r.seconds = median_call_seconds(o.repeat, false, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
     r.gflop = vae_decode_flop(cfg, o.frames, latent, latent) * 1e-9;
     r.extra["decode_chunk"] = chunk;
   } else {
     const Tensor images = pattern(Shape{o.frames, cfg.in_channels, o.size, o.size}, 1.0f);
-    r.seconds = median_seconds(o.repeat, [&] { y = vae.encode_mean(images); });
+    r.seconds = median_call_seconds(o.repeat, false, [&] { y = vae.encode_mean(images); });
     r.gflop = vae_encode_flop(cfg, o.frames, o.size, o.size) * 1e-9;
   }
   describe_output(y, r);

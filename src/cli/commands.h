@@ -1,5 +1,6 @@
 #pragma once
 // Every `egopd` command and `egopd bench` target is a function taking its parsed options; main.cpp dispatches.
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -36,6 +37,9 @@ struct BenchReport {
   nlohmann::ordered_json extra = nlohmann::ordered_json::object();
 };
 void print_bench_report(const BenchReport& r, bool json);
+// Median wall seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first touches of mapped
+// weights and scratch buffers).
+double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call);
 // FP32 peak of this machine class: threads x 32 FLOP/cycle x 3.07 GHz (override: EGOPD_PEAK_GFLOPS per core).
 double peak_gflops(int threads);
 
