@@ -38,6 +38,7 @@ class ClipVisionModelWithProjection {
   ClipVisionModelWithProjection(const ClipVisionConfig& config, std::shared_ptr<const WeightMap> weights);
 
   const ClipVisionConfig& config() const { return config_; }
+  const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
   // pixel_values [B, num_channels, image_size, image_size] (already normalised).
   ClipVisionOutput forward(const Tensor& pixel_values) const;
   // Work per image in FLOP (2 per multiply-add), for benchmarks.

@@ -35,6 +35,7 @@ class ClipTextModel {
   ClipTextModel(const ClipTextConfig& config, std::shared_ptr<const WeightMap> weights);
 
   const ClipTextConfig& config() const { return config_; }
+  const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
   int64_t hidden_size() const { return config_.encoder.hidden; }
   bool has_projection() const { return has_projection_; }
   // input_ids [N, L], L <= max_position_embeddings, ids in [0, vocab_size).

@@ -171,6 +171,8 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
     Tensor emb = image_encoder_->forward(pix).image_embeds;
     sh.prototype = emb.reshaped({1, 1, emb.dim(1)});
   }
+  // The image tower is done for this run: let its mapped pages go (they are re-read if it runs again).
+  if (!low_mem_) image_encoder_->weights()->release("");
   drop();
   sh.sampler = make_run_sampler(dir_, s.sampler);
   const int steps = s.steps > 0 ? s.steps : (s.sampler.empty() && defaults_.steps > 0 ? defaults_.steps
@@ -217,6 +219,7 @@ Tensor EgoPressureDiffPipeline::encode_text(const std::optional<std::string>& pr
     IdTensor ids{Shape{1, int64_t(t.ids.size())}, t.ids};
     out = text_->forward(ids).last_hidden_state;  // [1, 77, T]
   }
+  if (!low_mem_) text_->weights()->release("");
   drop();
   return out;
 }
@@ -281,6 +284,9 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
     if (on_step) on_step(i + 1, steps, seconds_since(t0));
   }
   res.latents = x;
+  // Decoding peaks in activation memory: the U-Net's mapped weights need not stay resident meanwhile (a following
+  // prompt variant reads them again from the page cache).
+  if (!low_mem_) unet_->weights()->release("");
   drop();
   {
     ScopedStage ld(load_times, "load");
