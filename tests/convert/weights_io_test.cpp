@@ -100,7 +100,8 @@ TEST(WriteWeights, ShardedModelDirectoryPassesInspect) {
   EXPECT_GT(shards.size(), 1u);  // the tiny U-Net is several MB
   for (const auto& s : shards) {  // the limit counts tensor bytes (as Hugging Face's max_shard_size does)
     uint64_t bytes = 0;
-    for (const auto& t : SafeTensorsFile(s).tensors()) bytes += t.nbytes;
+    const SafeTensorsFile file(s);  // named: the range-for must not iterate a destroyed temporary's tensors
+    for (const auto& t : file.tensors()) bytes += t.nbytes;
     EXPECT_LE(bytes, uint64_t(1) << 20) << s;
   }
   std::ostringstream report;
