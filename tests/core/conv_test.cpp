@@ -3,6 +3,8 @@
 // when an activation follows.
 #include <gtest/gtest.h>
 
+#include "core/kernel_reference.h"
+
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -16,17 +18,8 @@
 namespace egopd {
 namespace {
 
-constexpr double kU = 1.0 / 16777216.0;
-
-double act_ref(Act act, double x) {
-  switch (act) {
-    case Act::None: return x;
-    case Act::SiLU: return x / (1.0 + std::exp(-x));
-    case Act::GELU: return 0.5 * x * (1.0 + std::erf(x / std::sqrt(2.0)));
-    case Act::QuickGELU: return x / (1.0 + std::exp(-1.702 * x));
-  }
-  return x;
-}
+using test::act_ref;
+using test::kU;
 
 // Weights stored in a dtype, with their exact values for the reference.
 // I8 weights carry one scale per output channel (each channel = `per_channel` consecutive elements).

@@ -3,6 +3,8 @@
 //   |err| <= 2 (K + 3) u sum_k |a_ik b_kj| (+ the bias / residual terms) + 8 u |ref|,   u = 2^-24,
 // scaled by the activation's Lipschitz constant (<= 1.2 for SiLU, GELU, QuickGELU).
 #include <gtest/gtest.h>
+
+#include "core/kernel_reference.h"
 #include <omp.h>
 
 #include <cmath>
@@ -19,17 +21,8 @@
 namespace egopd {
 namespace {
 
-constexpr double kU = 1.0 / 16777216.0;  // 2^-24
-
-double act_ref(Act act, double x) {
-  switch (act) {
-    case Act::None: return x;
-    case Act::SiLU: return x / (1.0 + std::exp(-x));
-    case Act::GELU: return 0.5 * x * (1.0 + std::erf(x / std::sqrt(2.0)));
-    case Act::QuickGELU: return x / (1.0 + std::exp(-1.702 * x));
-  }
-  return x;
-}
+using test::act_ref;
+using test::kU;
 
 // A logical [rows, cols] matrix stored in some dtype, possibly transposed, with a padded leading dimension.
 struct StoredMatrix {
