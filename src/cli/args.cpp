@@ -1,6 +1,8 @@
 #include "cli/args.h"
 
+#include <cstdio>
 #include <cstdlib>
+#include <new>
 
 #include "core/error.h"
 
@@ -79,6 +81,17 @@ void Args::finish() const {
     if (!read_.count(k)) throw Error(command_ + ": unknown option --" + k + " (see egopd " + command_ + " --help)");
   for (const auto& k : flags_)
     if (!read_.count(k)) throw Error(command_ + ": unknown option --" + k + " (see egopd " + command_ + " --help)");
+}
+
+int run_reporting_errors(const char* program, const std::function<int()>& body) {
+  try {
+    return body();
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "%s: out of memory\n", program);
+  } catch (const std::exception& e) {  // egopd::Error and anything else: already one line
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+  }
+  return 1;
 }
 
 }  // namespace egopd

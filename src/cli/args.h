@@ -2,6 +2,7 @@
 // Command-line options: `--name value`, `--name=value` and boolean `--flag`. Every option a command reads is
 // declared by reading it; finish() rejects any option that was given but never read (typos are errors).
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -29,5 +30,8 @@ class Args {
   std::vector<std::string> positional_;
   mutable std::set<std::string> read_;
 };
+
+// Runs a command-line program's body: any failure becomes one line "<program>: <message>" on stderr and exit code 1.
+int run_reporting_errors(const char* program, const std::function<int()>& body);
 
 }  // namespace egopd

@@ -148,14 +148,5 @@ int run(int argc, char** argv) {
 }  // namespace egopd
 
 int main(int argc, char** argv) {
-  try {
-    return egopd::run(argc, argv);
-  } catch (const egopd::Error& e) {
-    std::fprintf(stderr, "egopd: %s\n", e.what());
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "egopd: out of memory\n");
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "egopd: %s\n", e.what());
-  }
-  return 1;
+  return egopd::run_reporting_errors("egopd", [&] { return egopd::run(argc, argv); });
 }

@@ -152,12 +152,5 @@ int run(int argc, char** argv) {
 }  // namespace egopd
 
 int main(int argc, char** argv) {
-  try {
-    return egopd::run(argc, argv);
-  } catch (const egopd::Error& e) {
-    std::fprintf(stderr, "egopd-convert: %s\n", e.what());
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "egopd-convert: %s\n", e.what());
-  }
-  return 1;
+  return egopd::run_reporting_errors("egopd-convert", [&] { return egopd::run(argc, argv); });
 }
