@@ -56,6 +56,8 @@ class Tensor {
   // Same storage, new shape with the same element count.
   Tensor reshaped(const Shape& shape) const;
   Tensor clone() const;
+  // True when this Tensor is the only one holding its (owned) storage: it may then be consumed destructively.
+  bool sole_owner() const { return owner_ && owner_.use_count() == 1; }
   std::vector<float> to_vector() const { return std::vector<float>(data_, data_ + numel()); }
 
  private:

@@ -111,12 +111,12 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   conv_in.forward(z.data(), n, H, W, x.data());
 
   // mid block: resnets.0 -> attentions.0 -> resnets.1 (diffusers zips resnets[1:] with the single attention)
-  x = mid_resnets[0].forward(std::move(x), batch, frames, H, W, nullptr, tile_floats);
+  x = mid_resnets[0].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
   if (mid_resnets.size() >= 2) {
     Tensor scratch(Shape{mid_attention.scratch_floats(H * W)});
     for (int64_t f = 0; f < n; ++f) mid_attention.forward_frame(x.data() + f * top * H * W, H * W, scratch.data());
     scratch = Tensor();
-    x = mid_resnets[1].forward(std::move(x), batch, frames, H, W, nullptr, tile_floats);
+    x = mid_resnets[1].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
   }
 
   // up blocks; an upsampler is fused into the first res-block after it (the upsampled clip is never stored)
@@ -124,7 +124,7 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   for (const auto& blk : up_blocks) {
     for (const auto& r : blk.resnets) {
       if (pending) H *= 2, W *= 2;
-      x = r.forward(std::move(x), batch, frames, H, W, pending, tile_floats);
+      x = r.forward(std::move(x), batch, frames, H, W, pending, temporal_memory);
       pending = nullptr;
     }
     if (blk.upsampler) pending = &*blk.upsampler;

@@ -54,7 +54,7 @@ struct TemporalDecoder {
   GroupNorm conv_norm_out;
   Conv2d conv_out;
   TemporalConv3 time_conv_out;
-  int64_t tile_floats = kDefaultTileFloats;  // pixel-tile budget of the temporal halves
+  TemporalMemory temporal_memory;  // how the temporal halves trade memory for time
 
   TemporalDecoder(const WeightView& w, const VaeConfig& cfg);  // w: decoder.*
   // diffusers TemporalDecoder(z, num_frames): z [batch·frames, latent, h, w] (frame-major videos of `frames` frames)
@@ -73,9 +73,9 @@ class TemporalVAE {
   const VaeConfig& config() const { return cfg_; }
   float scaling_factor() const { return float(cfg_.scaling_factor); }
   uint64_t weight_bytes() const { return weights_.total_bytes(); }
-  // Pixel-tile budget (floats) of the decoder's temporal halves: trades a little speed for memory; no effect on
-  // the result beyond float rounding order inside the kernels.
-  void set_temporal_tile_floats(int64_t floats) { decoder_->tile_floats = floats; }
+  // How the decoder's temporal halves trade speed for memory (pixel tiles, conv1 recomputation); no effect on the
+  // result beyond float rounding order.
+  void set_temporal_memory(const TemporalMemory& mem) { decoder_->temporal_memory = mem; }
 
   // images [N, in, H, W] -> posterior mean (= mode()) [N, latent, H/8, W/8]; logvar, if asked, clamped to [-30, 20].
   // No scaling factor.

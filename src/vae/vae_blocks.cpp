@@ -11,6 +11,7 @@
 #include "core/kernels/attention.h"
 #include "core/kernels/elementwise.h"
 #include "core/kernels/layout.h"
+#include "core/memory.h"
 #include "vae/vae_config.h"
 
 namespace egopd {
@@ -115,8 +116,20 @@ namespace {
 
 bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
 
-// Per-channel scale and shift of a 5-D GroupNorm of one video [F, c, hw]: statistics of each group over all frames,
-// mean then biased variance, both in double (two passes), exactly the kernel's recipe; y = x·scale[ch] + shift[ch].
+// Per-channel scale and shift of GroupNorm group g from its statistics: y = x·scale[ch] + shift[ch].
+void group_affine(const GroupNorm& gn, int64_t g, double mean, double var, float* scale, float* shift) {
+  const int64_t cg = gn.c / gn.groups;
+  const float mean_f = float(mean);
+  const float rstd = float(1.0 / std::sqrt(var + double(gn.eps)));
+  for (int64_t ci = 0; ci < cg; ++ci) {
+    const int64_t ch = g * cg + ci;
+    scale[ch] = rstd * gn.gamma[ch];
+    shift[ch] = gn.beta[ch] - mean_f * scale[ch];
+  }
+}
+
+// Scale and shift of a 5-D GroupNorm of one video [F, c, hw]: statistics of each group over all frames, mean then
+// biased variance, both in double (two passes), exactly the kernel's recipe.
 void video_group_norm_affine(const float* x, int64_t frames, int64_t hw, const GroupNorm& gn, float* scale,
                              float* shift) {
   const int64_t c = gn.c, cg = c / gn.groups;
@@ -146,16 +159,48 @@ void video_group_norm_affine(const float* x, int64_t frames, int64_t hw, const G
         }
       for (; i < n; ++i) sq[0] += (p[i] - mu) * (p[i] - mu);
     }
-    const double var = ((sq[0] + sq[1]) + (sq[2] + sq[3])) / count;
-    const float mean_f = float(mu);
-    const float rstd = float(1.0 / std::sqrt(var + double(gn.eps)));
-    for (int64_t ci = 0; ci < cg; ++ci) {
-      const int64_t ch = g * cg + ci;
-      scale[ch] = rstd * gn.gamma[ch];
-      shift[ch] = gn.beta[ch] - mean_f * scale[ch];
-    }
+    group_affine(gn, g, mu, ((sq[0] + sq[1]) + (sq[2] + sq[3])) / count, scale, shift);
   }
 }
+
+// Running per-group sums (Σx, Σx²) in double over the tiles of a video, for a GroupNorm whose input is never stored
+// whole. One pass instead of two: in double the cancellation of Σx²/n − mean² costs nothing at float precision
+// unless |mean| exceeds the standard deviation by ~10⁶, far beyond anything a trained decoder produces.
+struct GroupMoments {
+  std::vector<double> sum, sumsq;
+  explicit GroupMoments(int64_t groups) : sum(size_t(groups), 0.0), sumsq(size_t(groups), 0.0) {}
+
+  // tile [F, c, tn]
+  void add(const float* tile, int64_t frames, int64_t c, int64_t tn) {
+    const int64_t groups = int64_t(sum.size()), cg = c / groups;
+#pragma omp parallel for schedule(dynamic, 1) if (parallel_worth(frames * c * tn))
+    for (int64_t g = 0; g < groups; ++g) {
+      double s[4] = {0, 0, 0, 0}, q[4] = {0, 0, 0, 0};
+      for (int64_t f = 0; f < frames; ++f) {
+        const float* p = tile + (f * c + g * cg) * tn;
+        const int64_t n = cg * tn;
+        int64_t i = 0;
+        for (; i + 4 <= n; i += 4)
+          for (int u = 0; u < 4; ++u) {
+            const double v = p[i + u];
+            s[u] += v;
+            q[u] += v * v;
+          }
+        for (; i < n; ++i) s[0] += p[i], q[0] += double(p[i]) * p[i];
+      }
+      sum[size_t(g)] += (s[0] + s[1]) + (s[2] + s[3]);
+      sumsq[size_t(g)] += (q[0] + q[1]) + (q[2] + q[3]);
+    }
+  }
+
+  void affine(const GroupNorm& gn, double count_per_group, float* scale, float* shift) const {
+    for (int64_t g = 0; g < gn.groups; ++g) {
+      const double mean = sum[size_t(g)] / count_per_group;
+      const double var = std::max(0.0, sumsq[size_t(g)] / count_per_group - mean * mean);
+      group_affine(gn, g, mean, var, scale, shift);
+    }
+  }
+};
 
 // tile [F, c, tn] = SiLU(src[:, :, t0:t0+tn] · scale + shift) of a video src [F, c, hw].
 void gather_norm_silu(const float* src, int64_t frames, int64_t c, int64_t hw, int64_t t0, int64_t tn,
@@ -199,32 +244,49 @@ TemporalResnetBlock::TemporalResnetBlock(const WeightView& w, int64_t c_, float 
       conv2(w, "conv2", c_, c_) {}
 
 void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw, float spatial_weight,
-                                        int64_t tile_floats) const {
+                                        const TemporalMemory& mem) const {
   const int64_t rows = frames * c;
-  const int64_t tile = std::clamp<int64_t>(tile_floats / rows, 1, hw);
-  const bool whole = tile == hw;  // one tile: conv1 writes straight into g1
-  std::vector<float> scale(c), shift(c);
-  Tensor g1(Shape{frames, c, hw});  // conv1 output of the whole video (GroupNorm 2 needs all of it)
-  Tensor a(Shape{rows * tile}), b(Shape{whole ? 1 : rows * tile});
+  const int64_t tile = std::clamp<int64_t>(mem.tile_floats / rows, 1, hw);
+  const bool whole = tile == hw && !mem.recompute_conv1;  // one tile: conv1 writes straight into g1
+  const size_t nc = static_cast<size_t>(c);
+  std::vector<float> scale1(nc), shift1(nc), scale2(nc), shift2(nc);
+  Tensor a(Shape{rows * tile}), b(Shape{rows * tile});
 
-  video_group_norm_affine(video, frames, hw, norm1, scale.data(), shift.data());
-  for (int64_t t0 = 0; t0 < hw; t0 += tile) {
-    const int64_t tn = std::min(tile, hw - t0);
-    gather_norm_silu(video, frames, c, hw, t0, tn, scale.data(), shift.data(), a.data());  // [F, c, tn]
-    if (whole) {
-      conv1.forward(a.data(), 1, frames, tn, g1.data());
-    } else {
-      conv1.forward(a.data(), 1, frames, tn, b.data());
-      scatter_tile(b.data(), rows, hw, t0, tn, g1.data());
+  video_group_norm_affine(video, frames, hw, norm1, scale1.data(), shift1.data());
+  // dst [F, c, tn] = conv1(SiLU(GN1(video[:, :, t0:t0+tn]))); the temporal conv mixes frames, never pixels
+  const auto conv1_tile = [&](int64_t t0, int64_t tn, float* dst) {
+    gather_norm_silu(video, frames, c, hw, t0, tn, scale1.data(), shift1.data(), a.data());
+    conv1.forward(a.data(), 1, frames, tn, dst);
+  };
+
+  Tensor g1;  // conv1 output of the whole video [F, c, hw], unless it is recomputed
+  if (!mem.recompute_conv1) {
+    g1 = Tensor(Shape{frames, c, hw});
+    for (int64_t t0 = 0; t0 < hw; t0 += tile) {
+      const int64_t tn = std::min(tile, hw - t0);
+      conv1_tile(t0, tn, whole ? g1.data() : b.data());
+      if (!whole) scatter_tile(b.data(), rows, hw, t0, tn, g1.data());
     }
+    video_group_norm_affine(g1.data(), frames, hw, norm2, scale2.data(), shift2.data());
+  } else {
+    GroupMoments moments(norm2.groups);
+    for (int64_t t0 = 0; t0 < hw; t0 += tile) {
+      const int64_t tn = std::min(tile, hw - t0);
+      conv1_tile(t0, tn, b.data());
+      moments.add(b.data(), frames, c, tn);
+    }
+    moments.affine(norm2, double(frames * (c / norm2.groups) * hw), scale2.data(), shift2.data());
   }
 
-  video_group_norm_affine(g1.data(), frames, hw, norm2, scale.data(), shift.data());
   const float temporal_weight = 1.0f - spatial_weight;
-  if (whole) b = Tensor(Shape{rows * tile});
   for (int64_t t0 = 0; t0 < hw; t0 += tile) {
     const int64_t tn = std::min(tile, hw - t0);
-    gather_norm_silu(g1.data(), frames, c, hw, t0, tn, scale.data(), shift.data(), a.data());
+    if (mem.recompute_conv1) {  // video[:, :, t0:t0+tn] is still unblended: conv1 sees the same input again
+      conv1_tile(t0, tn, b.data());
+      gather_norm_silu(b.data(), frames, c, tn, 0, tn, scale2.data(), shift2.data(), a.data());
+    } else {
+      gather_norm_silu(g1.data(), frames, c, hw, t0, tn, scale2.data(), shift2.data(), a.data());
+    }
     conv2.forward(a.data(), 1, frames, tn, b.data());  // g [F, c, tn]
     blend_tile(b.data(), rows, hw, t0, tn, spatial_weight, temporal_weight, video);
   }
@@ -240,7 +302,7 @@ VaeSpatioTemporalResBlock::VaeSpatioTemporalResBlock(const WeightView& w, int64_
 }
 
 Tensor VaeSpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frames, int64_t H, int64_t W,
-                                       const Upsample2x* pre, int64_t tile_floats) const {
+                                          const Upsample2x* pre, const TemporalMemory& mem) const {
   const int64_t n = batch * frames, hw = H * W, ci = cin(), co = cout();
   const int64_t hin = pre ? H / 2 : H, win = pre ? W / 2 : W;
   EGOPD_CHECK(x.numel() == n * ci * hin * win, "res-block input " + x.shape().str() + " vs " + std::to_string(n) +
@@ -248,23 +310,27 @@ Tensor VaeSpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frame
                                                    "," + std::to_string(win) + "]");
   EGOPD_CHECK(!pre || (pre->c == ci && H == 2 * hin && W == 2 * win), "upsampler does not fit the res-block");
   Tensor out = (!pre && ci == co) ? x : Tensor(Shape{n, co, H, W});
+  // A separate output fills up while the input is consumed: give each input frame's pages back once it is read, so
+  // the two together never hold much more than the larger one.
+  const bool discard_input = out.data() != x.data() && x.sole_owner();
   {
     // Spatial half, frame by frame: [upsampled frame (pre only)] [resnet scratch / nearest-upsampled frame]
-    const int64_t up = pre ? ci * hw : 0;
+    const int64_t up = pre ? ci * hw : 0, in_frame = ci * hin * win;
     Tensor scratch(Shape{up + std::max(pre ? pre->scratch_floats(hin, win) : 0, spatial.scratch_floats(hw))});
     for (int64_t f = 0; f < n; ++f) {
-      const float* xf = x.data() + f * ci * hin * win;
+      const float* xf = x.data() + f * in_frame;
       if (pre) {
         pre->forward_frame(xf, hin, win, scratch.data(), scratch.data() + up);
         xf = scratch.data();
       }
       spatial.forward_frame(xf, out.data() + f * co * hw, H, W, scratch.data() + up);
+      if (discard_input) discard_pages(x.data() + f * in_frame, size_t(in_frame) * sizeof(float));
     }
   }
   x = Tensor();  // the input's memory goes before the temporal half allocates its buffers
   // Temporal half per video: R5 of frame-major rows is the same memory viewed as [F, C, H·W] per video.
   for (int64_t b = 0; b < batch; ++b)
-    temporal.forward_blend(out.data() + b * frames * co * hw, frames, hw, spatial_weight, tile_floats);
+    temporal.forward_blend(out.data() + b * frames * co * hw, frames, hw, spatial_weight, mem);
   return out.reshaped(Shape{n, co, H, W});
 }
 

@@ -59,6 +59,16 @@ struct Upsample2x {
   int64_t scratch_floats(int64_t H, int64_t W) const { return c * 4 * H * W; }
 };
 
+constexpr int64_t kDefaultTileFloats = int64_t(1) << 22;
+
+// How the decoder's temporal halves trade memory for time. Neither setting changes the result beyond float rounding.
+struct TemporalMemory {
+  int64_t tile_floats = kDefaultTileFloats;  // pixel tiles of at most tile_floats / (F·c) positions
+  // false: one whole-video buffer holds conv1's output (GroupNorm 2 needs statistics over all of it);
+  // true: no such buffer: conv1 runs twice, once for GroupNorm 2's statistics and once for the output (low memory).
+  bool recompute_conv1 = false;
+};
+
 // TemporalResnetBlock on one video [F, c, HW] (frame-major, i.e. R5 without moving data): 5-D GroupNorm(32, eps)
 // statistics over all F frames, Conv3d (3,1,1) zero-padded in time, no shortcut.
 struct TemporalResnetBlock {
@@ -67,12 +77,10 @@ struct TemporalResnetBlock {
   TemporalConv3 conv1, conv2;
 
   TemporalResnetBlock(const WeightView& w, int64_t c, float eps);
-  // In place: video <- w_s·video + (1 − w_s)·(video + g), g = conv2(SiLU(GN2(conv1(SiLU(GN1(video)))))).
-  // Works on pixel tiles of at most tile_floats / (F·c) positions; one whole-video buffer holds conv1's output.
-  void forward_blend(float* video, int64_t frames, int64_t hw, float spatial_weight, int64_t tile_floats) const;
+  // In place: video <- w_s·video + (1 − w_s)·(video + g), g = conv2(SiLU(GN2(conv1(SiLU(GN1(video)))))), worked on
+  // pixel tiles as `mem` says.
+  void forward_blend(float* video, int64_t frames, int64_t hw, float spatial_weight, const TemporalMemory& mem) const;
 };
-
-constexpr int64_t kDefaultTileFloats = int64_t(1) << 22;
 
 // Decoder VaeSpatioTemporalResBlock: spatial ResnetBlock2D (eps 1e-6) per frame, TemporalResnetBlock (eps 1e-5) per
 // video, AlphaBlender `learned` with switch_spatial_to_temporal_mix: out = (1 − σ(m))·spatial + σ(m)·temporal.
@@ -86,9 +94,10 @@ struct VaeSpatioTemporalResBlock {
   int64_t cout() const { return spatial.cout; }
   // x [batch·frames, cin, H, W] -> [batch·frames, cout, H, W]; with `pre`, x is [batch·frames, cin, H/2, W/2] and each
   // frame is first upsampled by it (the upsampled clip is never stored). Reuses x's storage when it can; pass the
-  // last reference to x (std::move) so its memory is released before the temporal half runs.
+  // last reference to x (std::move): its memory is then given back frame by frame as the spatial half consumes it,
+  // and before the temporal half runs.
   Tensor forward(Tensor x, int64_t batch, int64_t frames, int64_t H, int64_t W, const Upsample2x* pre = nullptr,
-                 int64_t tile_floats = kDefaultTileFloats) const;
+                 const TemporalMemory& mem = {}) const;
 };
 
 }  // namespace egopd

@@ -235,13 +235,16 @@ TEST(TemporalVae, ChunkedDecodingCouplesFramesWithinAChunkOnly) {
   EXPECT_THROW(vae.decode(rows(z, 0, 5), F), Error);  // 5 rows are not whole videos of 3 frames
 }
 
-TEST(TemporalVae, TemporalTilesDoNotChangeTheResult) {
+TEST(TemporalVae, TemporalTilesAndRecomputationDoNotChangeTheResult) {
   TemporalVAE vae(load_golden_case(golden("vae_decode")).model_dir());
   Tensor z = random_tensor(Shape{4, 4, 3, 5}, 23);
   Tensor whole = vae.decode_frames(z, 4);
-  vae.set_temporal_tile_floats(4 * 32 * 7);  // 7-pixel tiles (pixel counts 15/60/240 leave tails)
+  vae.set_temporal_memory({4 * 32 * 7, false});  // 7-pixel tiles (pixel counts 15/60/240 leave tails)
   Tensor tiled = vae.decode_frames(z, 4);
   EXPECT_LE(max_diff(whole.data(), tiled.data(), whole.numel()), 1e-5);
+  vae.set_temporal_memory({4 * 32 * 7, true});  // the low-memory mode: no whole-clip buffer, conv1 run twice
+  Tensor low = vae.decode_frames(z, 4);
+  EXPECT_LE(max_diff(whole.data(), low.data(), whole.numel()), 1e-5);
 }
 
 TEST(TemporalVae, DecodeLatentsMultipliesByTheFloatReciprocal) {

@@ -4,6 +4,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -322,14 +323,20 @@ TestWeights spatio_temporal_weights(int64_t cin, int64_t cout, bool with_upsampl
 
 struct StCase {
   int64_t batch, frames, cin, cout, H, W, tile_floats;
+  bool recompute_conv1;
 };
 
 TEST(VaeBlocks, SpatioTemporalResBlockMatchesReference) {
   const std::vector<StCase> cases = {
-      {1, 3, 64, 32, 3, 5, kDefaultTileFloats},  // width change (shortcut), one tile
-      {2, 3, 32, 32, 3, 5, 32 * 3 * 4},          // two videos in place; tiles of 4 pixels with a tail of 3
-      {1, 1, 32, 64, 2, 3, kDefaultTileFloats},  // a single frame: temporal taps at ±1 are padding
-      {3, 2, 64, 64, 1, 7, 64 * 2 * 2},          // tiles of 2 pixels, odd width
+      {1, 3, 64, 32, 3, 5, kDefaultTileFloats, false},  // width change (shortcut), one tile
+      {2, 3, 32, 32, 3, 5, 32 * 3 * 4, false},          // two videos in place; tiles of 4 pixels with a tail of 3
+      {1, 1, 32, 64, 2, 3, kDefaultTileFloats, false},  // a single frame: temporal taps at ±1 are padding
+      {3, 2, 64, 64, 1, 7, 64 * 2 * 2, false},          // tiles of 2 pixels, odd width
+      // low-memory mode: GroupNorm 2 statistics gathered tile by tile, conv1 recomputed for the output
+      {1, 3, 64, 32, 3, 5, kDefaultTileFloats, true},  // one tile
+      {2, 3, 32, 32, 3, 5, 32 * 3 * 4, true},          // tiles of 4 pixels with a tail of 3, two videos
+      {1, 1, 32, 64, 2, 3, 1, true},                   // a single frame, one-pixel tiles
+      {3, 2, 64, 64, 1, 7, 64 * 2 * 2, true},          // tiles of 2 pixels, odd width
   };
   for (const auto& k : cases) {
     TestWeights tw = spatio_temporal_weights(k.cin, k.cout, false);
@@ -338,11 +345,12 @@ TEST(VaeBlocks, SpatioTemporalResBlockMatchesReference) {
     const int64_t n = k.batch * k.frames;
     Tensor x = random_tensor(Shape{n, k.cin, k.H, k.W}, 3 + k.cin * k.frames);
     Vec want = ref_spatio_temporal(tw, to_vec(x.data(), x.numel()), k.batch, k.frames, k.cin, k.cout, k.H, k.W);
-    Tensor y = block.forward(x.clone(), k.batch, k.frames, k.H, k.W, nullptr, k.tile_floats);
+    Tensor y = block.forward(x.clone(), k.batch, k.frames, k.H, k.W, nullptr,
+                             TemporalMemory{k.tile_floats, k.recompute_conv1});
     ASSERT_EQ(y.shape(), (Shape{n, k.cout, k.H, k.W}));
     expect_close(y.data(), want, 3e-5,
                  "st block b" + std::to_string(k.batch) + " f" + std::to_string(k.frames) + " tile " +
-                     std::to_string(k.tile_floats));
+                     std::to_string(k.tile_floats) + (k.recompute_conv1 ? " recompute" : ""));
   }
 }
 
@@ -371,6 +379,24 @@ TEST(VaeBlocks, SpatioTemporalResBlockWithFusedUpsampler) {
     expect_close(y.data(), want, 3e-5, "st block with upsampler, threads " + std::to_string(threads));
   }
   set_num_threads(0);
+}
+
+// With an upsampler the block writes a separate output and gives the pages of each consumed input frame back — but
+// only when it holds the input's last reference: a caller's copy stays intact. Frames of 32 x 8 x 8 floats (8 KiB)
+// span whole pages, so the discard really happens in the sole-owner run.
+TEST(VaeBlocks, SpatioTemporalResBlockConsumesOnlyAnUnsharedInput) {
+  const int64_t frames = 3, c = 32, h = 8, w = 8;
+  TestWeights tw = spatio_temporal_weights(c, c, true);
+  WeightMap m = tw.load("st_share");
+  VaeSpatioTemporalResBlock block(m.root().sub("b"), c, c);
+  Upsample2x up(m.root().sub("u"), c);
+  Tensor x = random_tensor(Shape{frames, c, h, w}, 43);
+  const Tensor original = x.clone();
+  const Tensor shared = x;  // a second reference: forward must not consume the storage
+  Tensor y_shared = block.forward(x, 1, frames, 2 * h, 2 * w, &up);
+  EXPECT_TRUE(std::equal(shared.data(), shared.data() + shared.numel(), original.data()));
+  Tensor y_sole = block.forward(x.clone(), 1, frames, 2 * h, 2 * w, &up);  // sole owner: input consumed
+  EXPECT_TRUE(std::equal(y_sole.data(), y_sole.data() + y_sole.numel(), y_shared.data()));
 }
 
 }  // namespace
