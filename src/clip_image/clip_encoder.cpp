@@ -95,11 +95,17 @@ void ClipEncoderLayer::forward(float* h, int64_t batch, int64_t seq, bool causal
 
 ClipEncoder::ClipEncoder(const WeightView& encoder, const ClipEncoderConfig& c) {
   layers.reserve(size_t(c.layers));
-  for (int64_t i = 0; i < c.layers; ++i) layers.emplace_back(encoder.sub("layers." + std::to_string(i)), c);
+  for (int64_t i = 0; i < c.layers; ++i) {
+    layer_weights.push_back(encoder.sub("layers." + std::to_string(i)));
+    layers.emplace_back(layer_weights.back(), c);
+  }
 }
 
 void ClipEncoder::forward(float* h, int64_t batch, int64_t seq, bool causal, Arena& arena) const {
-  for (const auto& layer : layers) layer.forward(h, batch, seq, causal, arena);
+  for (size_t i = 0; i < layers.size(); ++i) {
+    layers[i].forward(h, batch, seq, causal, arena);
+    if (release_after_use) layer_weights[i].release();
+  }
 }
 
 }  // namespace egopd

@@ -52,6 +52,8 @@ struct ClipEncoderLayer {
 // encoder.layers.0 .. num_hidden_layers-1
 struct ClipEncoder {
   std::vector<ClipEncoderLayer> layers;
+  std::vector<WeightView> layer_weights;  // encoder.layers.i, for paging a layer out after it runs
+  bool release_after_use = false;         // low-memory mode: only the running layer's weights stay resident
   ClipEncoder() = default;
   ClipEncoder(const WeightView& encoder, const ClipEncoderConfig& c);
   void forward(float* h, int64_t batch, int64_t seq, bool causal, Arena& arena) const;

@@ -39,6 +39,8 @@ class ClipVisionModelWithProjection {
 
   const ClipVisionConfig& config() const { return config_; }
   const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
+  // Low-memory mode: page each encoder layer's mapped weights out after it runs (they are re-read on the next call).
+  void set_release_weights_after_use(bool on) { encoder.release_after_use = on; }
   // pixel_values [B, num_channels, image_size, image_size] (already normalised).
   ClipVisionOutput forward(const Tensor& pixel_values) const;
   // Work per image in FLOP (2 per multiply-add), for benchmarks.

@@ -36,6 +36,8 @@ class ClipTextModel {
 
   const ClipTextConfig& config() const { return config_; }
   const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
+  // Low-memory mode: page each encoder layer's mapped weights out after it runs (they are re-read on the next call).
+  void set_release_weights_after_use(bool on) { encoder.release_after_use = on; }
   int64_t hidden_size() const { return config_.encoder.hidden; }
   bool has_projection() const { return has_projection_; }
   // input_ids [N, L], L <= max_position_embeddings, ids in [0, vocab_size).

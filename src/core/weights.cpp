@@ -12,6 +12,8 @@ namespace fs = std::filesystem;
 
 WeightView WeightView::sub(const std::string& name) const { return WeightView(map_, key(name)); }
 
+void WeightView::release() const { map_->release(prefix_); }
+
 bool WeightView::has(const std::string& name) const { return map_->find(key(name)) != nullptr; }
 
 WeightMap WeightMap::recorder(const std::string& label) {

@@ -39,6 +39,8 @@ class WeightView {
   // float32 copy (norm weights, biases, small parameters).
   Tensor get_f32(const std::string& name, const Shape& expected) const;
   const WeightMap& map() const { return *map_; }
+  // WeightMap::release of this prefix: the tensors under it leave RAM until their next use.
+  void release() const;
 
  private:
   const WeightMap* map_;

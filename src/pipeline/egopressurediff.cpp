@@ -68,13 +68,14 @@ void EgoPressureDiffPipeline::load_unet() const {
 void EgoPressureDiffPipeline::load_vae() const {
   if (vae_) return;
   vae_ = std::make_unique<TemporalVAE>((fs::path(dir_) / "vae").string());
-  if (low_mem_) vae_->set_temporal_tile_floats(kLowMemTileFloats);
+  if (low_mem_) vae_->set_temporal_memory(kLowMemTemporal);
 }
 
 void EgoPressureDiffPipeline::load_image_encoder() const {
   if (image_encoder_) return;
   image_encoder_ = std::make_unique<ClipVisionModelWithProjection>(
       ClipVisionModelWithProjection::load_dir((fs::path(dir_) / "image_encoder").string()));
+  image_encoder_->set_release_weights_after_use(low_mem_);
   if (image_encoder_->config().projection_dim != unet_cfg_.cross_attention_dim[0])
     throw Error(dir_ + ": image_encoder projection_dim does not match the U-Net's cross_attention_dim");
 }
@@ -83,6 +84,7 @@ void EgoPressureDiffPipeline::load_text() const {
   if (!has_text_ || text_) return;
   const fs::path d(dir_);
   text_ = std::make_unique<ClipTextModel>(ClipTextModel::load_dir((d / "text_encoder").string()));
+  text_->set_release_weights_after_use(low_mem_);
   tokenizer_ = std::make_unique<ClipTokenizer>(ClipTokenizer::load_dir((d / "tokenizer").string()));
   if (unet_cfg_.pifr_enabled && text_->hidden_size() != unet_cfg_.pifr_text_dim)
     throw Error(dir_ + ": text_encoder hidden size " + std::to_string(text_->hidden_size()) +
@@ -294,8 +296,7 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
   }
   {
     ScopedStage st(times, "vae_decode");
-    const int64_t chunk = s.decode_chunk > 0 ? s.decode_chunk : (low_mem_ ? kLowMemDecodeChunk : 0);
-    res.decoded = vae_->decode_latents(x.reshaped({F, lc, h, w}), F, chunk);
+    res.decoded = vae_->decode_latents(x.reshaped({F, lc, h, w}), F, s.decode_chunk);
   }
   drop();
   {

@@ -40,15 +40,12 @@ struct PipelineSettings {
   uint64_t seed = 0;
   float min_guidance = 1, max_guidance = 1;
   float fps = 5, motion_bucket_id = 127, noise_aug_strength = 0.02f;
-  int64_t decode_chunk = 0;  // 0 = all frames (low-memory mode: kLowMemDecodeChunk)
+  int64_t decode_chunk = 0;  // frames per VAE decode call; 0 = all frames (vae.md §5.2: other values change the result)
 };
 
-// Low-memory mode decodes this many frames per VAE call unless decode_chunk says otherwise. Like diffusers'
-// decode_chunk_size, chunking changes the decoded frames (vae.md §5.2: the temporal layers see only the frames of a
-// chunk); the latents are unaffected.
-constexpr int64_t kLowMemDecodeChunk = 2;
-// Low-memory mode bounds the decoder's temporal pixel tiles to this many floats (no effect on the result).
-constexpr int64_t kLowMemTileFloats = int64_t(1) << 20;
+// Low-memory mode runs the decoder's temporal halves in pixel tiles of this many floats and recomputes their first
+// convolution instead of keeping its whole-clip output: the same numbers, decoded as one clip, in less memory.
+constexpr TemporalMemory kLowMemTemporal{int64_t(1) << 20, /*recompute_conv1=*/true};
 
 // step (1-based), steps, seconds of that step
 using StepCallback = std::function<void(int, int, double)>;
@@ -58,9 +55,10 @@ class EgoPressureDiffPipeline {
   // Loads every component of an EgoPressureDiff model directory (weights.md §1) for S x S frames. text_encoder/,
   // tokenizer/ and mask_encoder/ are optional (without them only no-text mode / no masks are available).
   // low_mem: components are loaded right before the stage that uses them and dropped after it (VAE, mask encoder and
-  // CLIP towers in encode() / encode_text(); the U-Net for the sampler loop, paging each block's weights out after
-  // it runs; the VAE again for a chunked decode), so peak memory is about the largest single component plus
-  // activations. Loading time then counts in the "load" stage of each call.
+  // CLIP towers in encode() / encode_text(), paging each layer's weights out after it runs; the U-Net for the sampler
+  // loop, paging each block's weights out after it runs; the VAE again for the decode, whose temporal layers then
+  // work in small tiles without a whole-clip temporary), so peak memory is about one component's working set. The
+  // results are the same as in normal mode. Loading time then counts in the "load" stage of each call.
   EgoPressureDiffPipeline(const std::string& model_dir, int64_t size, const std::string& template_path = "",
                           bool low_mem = false);
 

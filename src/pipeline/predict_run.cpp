@@ -249,7 +249,7 @@ ojson summary_json(const PredictOptions& o, const Prepared& p, const EgoPressure
   j["size"] = p.pipe->size();
   j["guidance"] = {p.settings.min_guidance, p.settings.max_guidance};
   j["low_mem"] = o.low_mem;
-  j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : (o.low_mem ? kLowMemDecodeChunk : sh.frames);
+  j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : sh.frames;
   j["model_dir"] = p.model_dir;
   j["model_synthetic"] = p.builtin_model;
   j["video"] = p.builtin_clip ? ojson("sample_clip.mp4 (built-in synthetic clip)") : ojson(o.video);

@@ -23,7 +23,7 @@ struct PredictOptions {
   int64_t frames = 0;  // 0: the model's default (16)
   int64_t size = 256;
   std::optional<std::pair<float, float>> guidance;  // min, max; default: the model's
-  int64_t decode_chunk = 0;                         // 0: all frames at once (--low-mem: kLowMemDecodeChunk)
+  int64_t decode_chunk = 0;                         // 0: all frames at once (also with --low-mem)
   bool low_mem = false;                             // load components one at a time (EgoPressureDiffPipeline)
   std::string template_path;                        // empty: the shipped template
   std::string out_dir;

@@ -148,11 +148,16 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
   std::vector<Tensor> skips{x};
   size_t ti = 0;  // transformer index into cond
   for (const auto& d : down_) {
+    const std::string block = "down_blocks." + std::to_string(&d - down_.data());
     for (size_t j = 0; j < d.resnets.size(); ++j) {
       stage.emplace(profile_, "resblock");
       x = d.resnets[j].forward(x, B, temb_silu.data(), arena_);
+      done(block + ".resnets." + std::to_string(j));
       stage.emplace(profile_, "transformer");
-      if (!d.attentions.empty()) x = d.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
+      if (!d.attentions.empty()) {
+        x = d.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
+        done(block + ".attentions." + std::to_string(j));
+      }
       skips.push_back(x);
     }
     if (d.has_downsampler) {
@@ -163,17 +168,20 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       x = y;
       skips.push_back(x);
     }
-    done("down_blocks." + std::to_string(&d - down_.data()));
+    done(block);
   }
   stage.emplace(profile_, "resblock");
   x = mid_res0_.forward(x, B, temb_silu.data(), arena_);
+  done("mid_block.resnets.0");
   stage.emplace(profile_, "transformer");
   x = mid_attn_.forward(x, B, cond.transformers[ti++], arena_);
+  done("mid_block.attentions.0");
   stage.emplace(profile_, "resblock");
   x = mid_res1_.forward(x, B, temb_silu.data(), arena_);
   done("mid_block");
 
   for (const auto& u : up_) {
+    const std::string block = "up_blocks." + std::to_string(&u - up_.data());
     for (size_t j = 0; j < u.resnets.size(); ++j) {
       stage.emplace(profile_, "skip_concat");
       Tensor skip = skips.back();
@@ -183,8 +191,12 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       concat_channels(x.data(), x.dim(1), skip.data(), skip.dim(1), N, H * W, cat.data());
       stage.emplace(profile_, "resblock");
       x = u.resnets[j].forward(cat, B, temb_silu.data(), arena_);
+      done(block + ".resnets." + std::to_string(j));
       stage.emplace(profile_, "transformer");
-      if (!u.attentions.empty()) x = u.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
+      if (!u.attentions.empty()) {
+        x = u.attentions[j].forward(x, B, cond.transformers[ti++], arena_);
+        done(block + ".attentions." + std::to_string(j));
+      }
     }
     if (u.has_upsampler) {
       stage.emplace(profile_, "upsample");
@@ -195,7 +207,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
       u.upsampler.forward(up.data(), N, 2 * H, 2 * W, y.data());
       x = y;
     }
-    done("up_blocks." + std::to_string(&u - up_.data()));
+    done(block);
   }
 
   stage.emplace(profile_, "conv_in_out");

@@ -43,8 +43,8 @@ class UNetSpatioTemporal {
   // Attach a per-block-type time breakdown (null: off).
   void set_profile(StageTimes* times) { profile_ = times; }
   const std::shared_ptr<const WeightMap>& weights() const { return weights_; }
-  // Low-memory mode: forward() drops the mapped pages of each block's weights once the block has run
-  // (WeightMap::release), so about one block's weights are resident at a time; the next step reads them again.
+  // Low-memory mode: forward() drops the mapped pages of each res-block's and transformer's weights once it has run
+  // (WeightMap::release), so about one layer's weights are resident at a time; the next step reads them again.
   void set_release_weights_after_use(bool on) { release_after_use_ = on; }
 
  private:
