@@ -34,31 +34,31 @@ constexpr uint64_t kModelSeed = 0;
 constexpr int kSourceSize = 640;
 constexpr double kSourceFps = 5;
 
-// $XDG_CACHE_HOME/egopd/bench-<config>-<dtype>-lcm<N> (N = 0: the Euler teacher), else under the temp folder.
-fs::path bench_model_dir(const std::string& config, const std::string& dtype, int lcm_steps) {
+// $XDG_CACHE_HOME/egopd/bench-<config>-<dtype>, else under the temp folder. One directory per dtype serves every
+// step count: the teacher and its AnimateLCM students have the same architecture, and the run picks the sampler.
+fs::path bench_model_dir(const std::string& config, const std::string& dtype) {
   std::string root = cache_root();
   if (root.empty()) root = (fs::temp_directory_path() / "egopd-cache").string();
-  return fs::path(root) / ("bench-" + config + "-" + dtype + "-lcm" + std::to_string(lcm_steps));
+  return fs::path(root) / ("bench-" + config + "-" + dtype);
 }
 
 // Writes the model into a private temporary folder and renames it into place, so an interrupted write (or a
 // concurrent bench) never leaves a half-written directory that a later run would reuse.
-fs::path ensure_model(const std::string& config, const std::string& dtype, int lcm_steps) {
-  const fs::path dir = bench_model_dir(config, dtype, lcm_steps);
+fs::path ensure_model(const std::string& config, const std::string& dtype) {
+  const fs::path dir = bench_model_dir(config, dtype);
   if (fs::exists(dir / "model_index.json")) return dir;
   fs::create_directories(dir.parent_path());
   const fs::path tmp = dir.string() + ".tmp-" + std::to_string(::getpid());
   fs::remove_all(tmp);
   if (dtype == "q8") {
     // q8 is the converter's per-channel int8 quantisation of a float model (the F16 one, reused by f16 runs).
-    const fs::path base = ensure_model(config, "f16", lcm_steps);
+    const fs::path base = ensure_model(config, "f16");
     std::fprintf(stderr, "bench pipeline: quantising %s to q8 in %s\n", base.c_str(), dir.c_str());
     convert_dtype(base.string(), tmp.string(), TargetDType::Q8, WriteOptions{});
   } else {
-    std::fprintf(stderr, "bench pipeline: writing a synthetic %s model (%s, %s) to %s\n", config.c_str(),
-                 dtype.c_str(), lcm_steps ? ("AnimateLCM " + std::to_string(lcm_steps) + " steps").c_str() : "Euler",
+    std::fprintf(stderr, "bench pipeline: writing a synthetic %s model (%s) to %s\n", config.c_str(), dtype.c_str(),
                  dir.c_str());
-    write_synthetic_model(tmp.string(), config, kModelSeed, parse_weight_dtype(dtype, "dtype"), lcm_steps);
+    write_synthetic_model(tmp.string(), config, kModelSeed, parse_weight_dtype(dtype, "dtype"), /*lcm_steps=*/0);
   }
   std::error_code ec;
   fs::rename(tmp, dir, ec);
@@ -116,12 +116,11 @@ int bench_pipeline(const Args& a) {
   if (frames < 1 || frames > 1024 || size < 64 || size % 64 || decode_chunk < 0)
     throw Error("bench pipeline: need --frames 1..1024, --size a multiple of 64, --decode-chunk >= 0");
 
-  // 25 steps is the teacher (Euler, as trained); any other count is an AnimateLCM student distilled for it.
-  const int lcm_steps = steps == 25 ? 0 : int(steps);
-  const fs::path model = model_arg.empty() ? ensure_model(config, dtype, lcm_steps) : fs::path(model_arg);
+  const fs::path model = model_arg.empty() ? ensure_model(config, dtype) : fs::path(model_arg);
   const SourceClip source{int(frames)};
 
   StageTimes times;
+  times.track_memory(true);
   std::vector<double> step_seconds;
   const auto t0 = std::chrono::steady_clock::now();
   Tensor rgb;
@@ -137,6 +136,8 @@ int bench_pipeline(const Args& a) {
   PipelineSettings s = pipe->settings_from_defaults();
   s.frames = frames;
   s.steps = int(steps);
+  // 25 steps is the teacher (Euler, as trained); any other count is an AnimateLCM student distilled for it.
+  s.sampler = steps == 25 ? "euler" : "lcm";
   s.seed = 0;
   s.decode_chunk = decode_chunk;
   // A full prompt, so the text encoder and the PIFR layers run as in a real prediction with metadata.
@@ -161,11 +162,12 @@ int bench_pipeline(const Args& a) {
   const int64_t videos = guidance_enabled(s.max_guidance) ? 2 : 1, lat = size / 8;
   const auto fl = shape_only.flops(videos, frames, lat, lat, 1, text.empty() ? 0 : text.dim(1));
 
-  nlohmann::ordered_json stages = nlohmann::ordered_json::object();
+  nlohmann::ordered_json stages = nlohmann::ordered_json::object(), stage_rss = nlohmann::ordered_json::object();
   for (const auto& [k, v] : times.entries()) {
     stages[k] = v;
     if (k == "denoise") stages["denoise_steps"] = step_seconds;
   }
+  for (const auto& [k, v] : times.stage_peaks()) stage_rss[k] = v;
   BenchReport rep;
   rep.target = "pipeline";
   rep.seconds = total;
@@ -178,12 +180,14 @@ int bench_pipeline(const Args& a) {
   rep.extra["frames"] = frames;
   rep.extra["size"] = size;
   rep.extra["low_mem"] = low_mem;
-  rep.extra["decode_chunk"] = decode_chunk > 0 ? decode_chunk : (low_mem ? kLowMemDecodeChunk : frames);
+  rep.extra["decode_chunk"] = decode_chunk > 0 ? decode_chunk : frames;
   rep.extra["model_dir"] = model.string();
   rep.extra["weights_bytes"] = weight_file_bytes(model);
   rep.extra["total_seconds"] = total;
   rep.extra["fps"] = double(frames) / total;
   rep.extra["stages"] = stages;
+  rep.extra["peak_rss_bytes"] = times.peak_rss();  // VmHWM restarts per stage: the run's peak is the maximum
+  rep.extra["stage_peak_rss_bytes"] = stage_rss;
   print_bench_report(rep, json);
   return 0;
 }

@@ -1,5 +1,9 @@
 #include "core/timing.h"
 
+#include <algorithm>
+
+#include "core/memory.h"
+
 namespace egopd {
 
 void StageTimes::add(const std::string& stage, double seconds) {
@@ -10,6 +14,24 @@ void StageTimes::add(const std::string& stage, double seconds) {
     }
   entries_.push_back({stage, seconds});
 }
+
+void StageTimes::begin_memory_stage() {
+  peak_before_ = std::max(peak_before_, peak_rss_bytes());
+  reset_peak_rss();
+}
+
+void StageTimes::end_memory_stage(const std::string& stage) {
+  const uint64_t peak = peak_rss_bytes();
+  peak_before_ = std::max(peak_before_, peak);
+  for (auto& e : peaks_)
+    if (e.first == stage) {
+      e.second = std::max(e.second, peak);
+      return;
+    }
+  peaks_.push_back({stage, peak});
+}
+
+uint64_t StageTimes::peak_rss() const { return std::max(peak_before_, peak_rss_bytes()); }
 
 double StageTimes::total() const {
   double t = 0;
