@@ -127,6 +127,13 @@ void Arena::release(size_t mark) {
   used_ = mark;
 }
 
+void Arena::shrink_to_peak() {
+  EGOPD_CHECK(used_ == 0, "arena shrink while blocks are taken");
+  if (peak_ == 0 || (chunks_.size() == 1 && chunks_[0].size == peak_)) return;
+  chunks_.clear();  // the old memory goes before the new chunk is allocated
+  chunks_.push_back({alloc_floats(peak_), 0, peak_});
+}
+
 size_t Arena::capacity_bytes() const {
   size_t n = 0;
   for (const auto& c : chunks_) n += c.size;

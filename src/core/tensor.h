@@ -81,6 +81,9 @@ class Arena {
   size_t mark() const { return used_; }
   void release(size_t mark);
   void reset() { release(0); }
+  // With nothing taken, replaces the chunks by one of exactly the peak use so far: a pass that repeats the same
+  // requests fits it (one chunk never skips a tail), and the growth slack of the first pass is given back.
+  void shrink_to_peak();
   size_t peak_bytes() const { return peak_ * sizeof(float); }
   size_t capacity_bytes() const;
 

@@ -120,6 +120,7 @@ Tensor UNetSpatioTemporal::forward(const Tensor& sample, float timestep, const T
                 std::to_string(down_factor));
   const int64_t ted = cfg_.time_embed_dim(), c0 = cfg_.block_out_channels[0], ad = cfg_.addition_time_embed_dim;
   arena_.reset();
+  arena_.shrink_to_peak();  // after the first call: one chunk of exactly what a forward pass needs
   const auto done = [&](const std::string& prefix) {
     if (release_after_use_) weights_->release(prefix);
   };
