@@ -188,10 +188,12 @@ write_report() {
     echo "MiB over the whole run, with the stage where it occurred. Steps: 25 = Euler teacher, 8 and 4 = AnimateLCM"
     echo "students. *low-mem* (\`--low-mem\`) loads one component at a time, pages CLIP and U-Net weights out after each"
     echo "layer, and runs the VAE decoder's temporal layers in small tiles without a whole-clip temporary: the same"
-    echo "numbers as normal mode (checked by the tests), in less memory."
+    echo "numbers as normal mode (checked by the tests), in less memory. *Σ latents²* and *Σ video*: fingerprints of"
+    echo "the final latents and the decoded clip; runs of one size, step count and dtype should agree in about 5"
+    echo "significant digits across thread counts and modes (float summation order differs)."
     echo
-    echo "| threads | size | frames | steps | dtype | mode | load | decode+resize | text_encoder | vae_encode | clip_image | s/step | denoise | vae_decode | postprocess | total | FPS | peak RSS MiB |"
-    echo "| ---: | --- | ---: | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"
+    echo "| threads | size | frames | steps | dtype | mode | load | decode+resize | text_encoder | vae_encode | clip_image | s/step | denoise | vae_decode | postprocess | total | FPS | peak RSS MiB | Σ latents² | Σ video |"
+    echo "| ---: | --- | ---: | --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: |"
     printf '%s' "$rows"
     echo
     speedup_table
@@ -228,9 +230,12 @@ for r in "${runs[@]}"; do
     rows+="$(f2 "$(jnum vae_encode "$st")") | $(f2 "$(jnum clip_image "$st")") | $(jsteps "$st") | "
     rows+="$(f2 "$(jnum denoise "$st")") | $(f2 "$(jnum vae_decode "$st")") | $(f2 "$(jnum postprocess "$st")") | "
     rows+="$(f2 "$(jnum total_seconds "$j")") | $(awk -v x="$(jnum fps "$j")" 'BEGIN { printf "%.3f", x }') | "
-    rows+="$(mib "$(jnum peak_rss_bytes "$j")") ($(peak_stage "$(section stage_peak_rss_bytes "$j")")) |"$'\n'
+    rows+="$(mib "$(jnum peak_rss_bytes "$j")") ($(peak_stage "$(section stage_peak_rss_bytes "$j")")) | "
+    res=$(section result "$j")
+    rows+="$(awk -v x="$(jnum latents_sum_sq "$res")" 'BEGIN { printf "%.6g", x }') | "
+    rows+="$(awk -v x="$(jnum decoded_sum "$res")" 'BEGIN { printf "%.6g", x }') |"$'\n'
   else
-    rows+="| $t | ${s}x${s} | $f | $n | $d | $m | failed (see the script's stderr) |||||||||||"$'\n'
+    rows+="| $t | ${s}x${s} | $f | $n | $d | $m | failed (see the script's stderr) |||||||||||||"$'\n'
   fi
   write_report
 done

@@ -154,6 +154,12 @@ int bench_pipeline(const Args& a) {
   const double total = seconds_since(t0);
   if (!std::isfinite(r.latents[0])) throw Error("bench pipeline: non-finite latents");
   pipe.reset();
+  // Fingerprints of the result, so runs that should agree (thread counts, normal vs --low-mem) can be compared.
+  double latents_sum_sq = 0, decoded_sum = 0, taxels_sum = 0;
+  for (int64_t i = 0; i < r.latents.numel(); ++i) latents_sum_sq += double(r.latents[i]) * r.latents[i];
+  for (int64_t i = 0; i < r.decoded.numel(); ++i) decoded_sum += r.decoded[i];
+  for (const auto& f : r.frames)
+    for (double p : f.p) taxels_sum += p;
 
   // Work of the sampler loop: U-Net FLOPs per evaluation (counted from the config) x evaluations.
   const UNetConfig ucfg = UNetConfig::load((model / "unet").string());
@@ -188,6 +194,7 @@ int bench_pipeline(const Args& a) {
   rep.extra["stages"] = stages;
   rep.extra["peak_rss_bytes"] = times.peak_rss();  // VmHWM restarts per stage: the run's peak is the maximum
   rep.extra["stage_peak_rss_bytes"] = stage_rss;
+  rep.extra["result"] = {{"latents_sum_sq", latents_sum_sq}, {"decoded_sum", decoded_sum}, {"taxels_sum", taxels_sum}};
   print_bench_report(rep, json);
   return 0;
 }
