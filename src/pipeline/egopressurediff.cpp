@@ -68,7 +68,9 @@ void EgoPressureDiffPipeline::load_unet() const {
 void EgoPressureDiffPipeline::load_vae() const {
   if (vae_) return;
   vae_ = std::make_unique<TemporalVAE>((fs::path(dir_) / "vae").string());
-  if (low_mem_) vae_->set_temporal_memory(kLowMemTemporal);
+  if (!low_mem_) return;
+  vae_->set_temporal_memory(kLowMemTemporal);
+  vae_->set_release_weights_after_use(true);
 }
 
 void EgoPressureDiffPipeline::load_image_encoder() const {

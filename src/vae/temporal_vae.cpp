@@ -87,7 +87,8 @@ TemporalDecoder::TemporalDecoder(const WeightView& w, const VaeConfig& c)
       mid_attention(w.sub("mid_block.attentions.0"), c.block_out_channels.back()),
       conv_norm_out(w, "conv_norm_out", c.block_out_channels[0], VaeConfig::kGroups, 1e-6f),
       conv_out(w, "conv_out", c.block_out_channels[0], c.out_channels, 3, 1, 1),
-      time_conv_out(w, "time_conv_out", c.out_channels, c.out_channels) {
+      time_conv_out(w, "time_conv_out", c.out_channels, c.out_channels),
+      weights(w) {
   const int64_t top = c.block_out_channels.back(), n = c.levels();
   for (int64_t j = 0; j < c.layers_per_block; ++j)
     mid_resnets.emplace_back(w.sub("mid_block.resnets." + std::to_string(j)), top, top);
@@ -107,8 +108,12 @@ TemporalDecoder::TemporalDecoder(const WeightView& w, const VaeConfig& c)
 Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   const int64_t n = z.dim(0), batch = n / frames, top = cfg.block_out_channels.back();
   int64_t H = z.dim(2), W = z.dim(3);
+  const auto done = [&](const std::string& block) {
+    if (release_after_use) (block.empty() ? weights : weights.sub(block)).release();
+  };
   Tensor x(Shape{n, top, H, W});
   conv_in.forward(z.data(), n, H, W, x.data());
+  done("conv_in");
 
   // mid block: resnets.0 -> attentions.0 -> resnets.1 (diffusers zips resnets[1:] with the single attention)
   x = mid_resnets[0].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
@@ -118,16 +123,21 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
     scratch = Tensor();
     x = mid_resnets[1].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
   }
+  done("mid_block");
 
-  // up blocks; an upsampler is fused into the first res-block after it (the upsampled clip is never stored)
+  // up blocks; an upsampler is fused into the first res-block after it (the upsampled clip is never stored), so its
+  // block's weights are released after that res-block
   const Upsample2x* pending = nullptr;
-  for (const auto& blk : up_blocks) {
+  for (size_t i = 0; i < up_blocks.size(); ++i) {
+    const UpBlock& blk = up_blocks[i];
     for (const auto& r : blk.resnets) {
       if (pending) H *= 2, W *= 2;
       x = r.forward(std::move(x), batch, frames, H, W, pending, temporal_memory);
+      if (pending) done("up_blocks." + std::to_string(i - 1));
       pending = nullptr;
     }
     if (blk.upsampler) pending = &*blk.upsampler;
+    else done("up_blocks." + std::to_string(i));
   }
   EGOPD_CHECK(pending == nullptr, "the last decoder up block has no upsampler");
 
@@ -144,6 +154,7 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   x = Tensor();
   Tensor y(Shape{n, co, H, W});
   time_conv_out.forward(frames_out.data(), batch, frames, hw, y.data());  // R5 -> Conv3d (3,1,1) -> R5⁻¹
+  done("");
   return y;
 }
 

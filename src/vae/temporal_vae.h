@@ -55,6 +55,8 @@ struct TemporalDecoder {
   Conv2d conv_out;
   TemporalConv3 time_conv_out;
   TemporalMemory temporal_memory;  // how the temporal halves trade memory for time
+  WeightView weights;              // decoder.*, for paging a block out after it runs
+  bool release_after_use = false;  // low-memory mode: only the running block's weights stay resident
 
   TemporalDecoder(const WeightView& w, const VaeConfig& cfg);  // w: decoder.*
   // diffusers TemporalDecoder(z, num_frames): z [batch·frames, latent, h, w] (frame-major videos of `frames` frames)
@@ -76,6 +78,9 @@ class TemporalVAE {
   // How the decoder's temporal halves trade speed for memory (pixel tiles, conv1 recomputation); no effect on the
   // result beyond float rounding order.
   void set_temporal_memory(const TemporalMemory& mem) { decoder_->temporal_memory = mem; }
+  // Low-memory mode: the decoder pages each block's weights out after it runs (WeightMap::release); they are read
+  // again from the file on the next decode.
+  void set_release_weights_after_use(bool on) { decoder_->release_after_use = on; }
 
   // images [N, in, H, W] -> posterior mean (= mode()) [N, latent, H/8, W/8]; logvar, if asked, clamped to [-30, 20].
   // No scaling factor.

@@ -45,6 +45,19 @@ void ResnetBlock2D::forward_frame(const float* x, float* out, int64_t H, int64_t
   conv2.forward(h, 1, H, W, out, Act::None, /*accumulate=*/true);  // out = shortcut(x) + conv2(h)
 }
 
+void ResnetBlock2D::forward_frame_consuming(float* x, float* out, int64_t H, int64_t W, float* scratch) const {
+  EGOPD_CHECK(out != x, "a consuming res-block call cannot run in place");
+  const int64_t hw = H * W;
+  float* h = scratch;  // [cout, H, W]
+  // The shortcut reads x before it is normalised; the sums are those of forward_frame, in the same order.
+  if (has_shortcut) conv_shortcut.forward(x, 1, H, W, out);
+  else std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
+  norm1.forward(x, x, 1, 1, hw, /*silu=*/true);
+  conv1.forward(x, 1, H, W, h);
+  norm2.forward(h, h, 1, 1, hw, /*silu=*/true);
+  conv2.forward(h, 1, H, W, out, Act::None, /*accumulate=*/true);
+}
+
 // ---------------------------------------------------------------- MidBlockAttention
 
 MidBlockAttention::MidBlockAttention(const WeightView& w, int64_t c_)
@@ -314,16 +327,20 @@ Tensor VaeSpatioTemporalResBlock::forward(Tensor x, int64_t batch, int64_t frame
   // the two together never hold much more than the larger one.
   const bool discard_input = out.data() != x.data() && x.sole_owner();
   {
-    // Spatial half, frame by frame: [upsampled frame (pre only)] [resnet scratch / nearest-upsampled frame]
+    // Spatial half, frame by frame. With pre: [upsampled frame] [nearest-upsampled frame, then the res-block's
+    // hidden state]; the upsampled frame is the block's own copy, so the res-block normalises it in place.
     const int64_t up = pre ? ci * hw : 0, in_frame = ci * hin * win;
-    Tensor scratch(Shape{up + std::max(pre ? pre->scratch_floats(hin, win) : 0, spatial.scratch_floats(hw))});
+    Tensor scratch(Shape{pre ? up + std::max(pre->scratch_floats(hin, win), spatial.consuming_scratch_floats(hw))
+                             : spatial.scratch_floats(hw)});
     for (int64_t f = 0; f < n; ++f) {
       const float* xf = x.data() + f * in_frame;
+      float* of = out.data() + f * co * hw;
       if (pre) {
         pre->forward_frame(xf, hin, win, scratch.data(), scratch.data() + up);
-        xf = scratch.data();
+        spatial.forward_frame_consuming(scratch.data(), of, H, W, scratch.data() + up);
+      } else {
+        spatial.forward_frame(xf, of, H, W, scratch.data());
       }
-      spatial.forward_frame(xf, out.data() + f * co * hw, H, W, scratch.data() + up);
       if (discard_input) discard_pages(x.data() + f * in_frame, size_t(in_frame) * sizeof(float));
     }
   }

@@ -22,6 +22,10 @@ struct ResnetBlock2D {
   // One frame: x [cin, H, W] -> out [cout, H, W]; out may alias x when cin == cout.
   void forward_frame(const float* x, float* out, int64_t H, int64_t W, float* scratch) const;
   int64_t scratch_floats(int64_t hw) const { return (cin + cout) * hw; }
+  // The same result when x is the caller's own copy: x is normalised in place (x is garbage afterwards), so the
+  // scratch holds only the [cout, H, W] hidden state. out must not alias x.
+  void forward_frame_consuming(float* x, float* out, int64_t H, int64_t W, float* scratch) const;
+  int64_t consuming_scratch_floats(int64_t hw) const { return cout * hw; }
 };
 
 // Mid-block attention (diffusers Attention with group norm, biases, one head of width c, residual).

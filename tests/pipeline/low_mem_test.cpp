@@ -1,7 +1,8 @@
-// Low-memory mode (components loaded one at a time, CLIP and U-Net weights paged out layer by layer, the VAE's
-// temporal layers tiled with their first convolution recomputed) gives the results of normal mode on a tiny
-// synthetic model at 64 x 64: the same latents, decoded frames and taxels, with the default whole-clip decode and
-// with a chunked one (chunking itself changes the decoded frames, vae.md §5.2, equally in both modes).
+// Low-memory mode (components loaded one at a time, CLIP, U-Net and VAE-decoder weights paged out layer by layer,
+// the VAE's temporal layers tiled with their first convolution recomputed) gives the results of normal mode on a
+// tiny synthetic model at 64 x 64: the same latents, decoded frames and taxels, with the default whole-clip decode and
+// with a chunked one (chunking itself changes the decoded frames, vae.md §5.2, equally in both modes). One and two
+// threads give the same results too (only the float summation order differs).
 // WeightMap::release covers exactly the tensors under a prefix and leaves their data readable.
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -12,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/safetensors.h"
+#include "core/threading.h"
 #include "core/weights.h"
 #include "pipeline/egopressurediff.h"
 #include "pipeline/media.h"
@@ -26,7 +28,7 @@ constexpr int64_t kFrames = 3, kSize = 64;
 // The golden tolerance of the pipeline's latents (svd_pipeline case); taxels are normalised to [0, 1].
 constexpr double kLatentMaxAbs = 1.96e-3, kTaxelMaxAbs = 1e-5;
 
-class LowMem : public ::testing::Test {
+class PipelineModes : public ::testing::Test {
  protected:
   static fs::path root;
   static void SetUpTestSuite() {
@@ -60,7 +62,7 @@ class LowMem : public ::testing::Test {
     return r;
   }
 };
-fs::path LowMem::root;
+fs::path PipelineModes::root;
 
 double max_abs_diff(const Tensor& a, const Tensor& b) {
   EXPECT_TRUE(a.shape() == b.shape()) << a.shape().str() << " vs " << b.shape().str();
@@ -85,7 +87,7 @@ bool has_stage(const StageTimes& t, const std::string& name) {
   return false;
 }
 
-TEST_F(LowMem, MatchesNormalMode) {
+TEST_F(PipelineModes, LowMemMatchesNormalMode) {
   const Run normal = run(false, 0);
   const Run low = run(true, 0);
   EXPECT_LE(max_abs_diff(normal.result.latents, low.result.latents), kLatentMaxAbs);
@@ -96,7 +98,7 @@ TEST_F(LowMem, MatchesNormalMode) {
   EXPECT_FALSE(has_stage(normal.times, "load"));
 }
 
-TEST_F(LowMem, ChunkedDecodeMatchesNormalModeWithTheSameChunk) {
+TEST_F(PipelineModes, LowMemChunkedDecodeMatchesNormalModeWithTheSameChunk) {
   const Run normal = run(false, 2);
   const Run low = run(true, 2);
   EXPECT_LE(max_abs_diff(normal.result.latents, low.result.latents), kLatentMaxAbs);
@@ -104,7 +106,21 @@ TEST_F(LowMem, ChunkedDecodeMatchesNormalModeWithTheSameChunk) {
   EXPECT_LE(max_abs_diff(normal.result.decoded, low.result.decoded), kTaxelMaxAbs);
 }
 
-TEST_F(LowMem, PredictWritesLowMemSummary) {
+TEST_F(PipelineModes, OneAndTwoThreadsAgreeInBothModes) {
+  for (bool low_mem : {false, true}) {
+    set_num_threads(1);
+    const Run one = run(low_mem, 0);
+    set_num_threads(2);
+    const Run two = run(low_mem, 0);
+    set_num_threads(0);
+    const std::string mode = low_mem ? "low-mem" : "normal";
+    EXPECT_LE(max_abs_diff(one.result.latents, two.result.latents), kLatentMaxAbs) << mode;
+    EXPECT_LE(max_abs_diff(one.result.decoded, two.result.decoded), kTaxelMaxAbs) << mode;
+    EXPECT_LE(taxel_max_abs_diff(one.result, two.result), kTaxelMaxAbs) << mode;
+  }
+}
+
+TEST_F(PipelineModes, PredictWritesLowMemSummary) {
   PredictOptions o;
   o.model_dir = (root / "model").string();
   o.frames = 2;
