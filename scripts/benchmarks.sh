@@ -8,8 +8,9 @@
 #   ./scripts/benchmarks.sh --matrix --sizes "256" --steps "4" --dtypes "f16 q8" --out b.md    a cross product
 #
 # The standard table covers every dimension without the full cross product (which takes a day: a 25-step run at
-# 512x512 alone is ~45 min on 2 cores), in this order: 256x256 at 4/8/25 steps, F16, normal and --low-mem; 4 steps in
-# every dtype; q8 --low-mem; 4 steps on 1 thread (speed-up per stage); 128x128 at 25/8/4 steps; 512x512 at 4 steps.
+# 512x512 alone is ~45 min on 2 cores), in this order: 256x256 at 4 steps, F16 and q8, normal and --low-mem; 256x256
+# at 25 and 8 steps; 128x128 at 4/8/25 steps and --low-mem; 512x512 at 4 steps; 4 steps on 1 thread (speed-up per
+# stage); BF16 and F32; 25 steps --low-mem; 512x512 --low-mem.
 #
 # Options (lists are space-separated, quoted; --matrix runs threads x sizes x frames x steps x dtypes x modes):
 #   --config svd-xt|tiny   model preset (default svd-xt; --quick: tiny)
@@ -79,13 +80,15 @@ if [ "$matrix" = 1 ]; then
   done; done; done; done; done
 else
   t="${threads%% *}"  # the standard table runs at one thread count (plus 1 thread for the speed-up rows)
+  # The headline rows first (an interrupted run still has them): 256x256 F16 and q8, normal and low-mem, 25 steps.
   runs=(
-    "$t 256 16 4 f16 normal" "$t 256 16 4 f16 low-mem" "$t 256 16 25 f16 normal" "$t 256 16 8 f16 normal"
-    "$t 256 16 4 q8 normal" "$t 256 16 4 q8 low-mem" "$t 256 16 4 bf16 normal" "$t 256 16 4 f32 normal"
+    "$t 256 16 4 f16 normal" "$t 256 16 4 f16 low-mem" "$t 256 16 4 q8 normal" "$t 256 16 4 q8 low-mem"
+    "$t 256 16 25 f16 normal" "$t 256 16 8 f16 normal"
+    "$t 128 16 4 f16 normal" "$t 128 16 8 f16 normal" "$t 128 16 25 f16 normal" "$t 128 16 4 f16 low-mem"
+    "$t 512 16 4 f16 normal"
   )
   [ "$t" != 1 ] && runs+=("1 256 16 4 f16 normal")
-  runs+=("$t 128 16 4 f16 normal" "$t 128 16 8 f16 normal" "$t 128 16 25 f16 normal" "$t 128 16 4 f16 low-mem"
-         "$t 512 16 4 f16 normal" "$t 256 16 25 f16 low-mem" "$t 512 16 4 f16 low-mem")
+  runs+=("$t 256 16 4 bf16 normal" "$t 256 16 4 f32 normal" "$t 256 16 25 f16 low-mem" "$t 512 16 4 f16 low-mem")
 fi
 
 if [ -z "$egopd" ]; then
