@@ -31,30 +31,28 @@ ResnetBlock2D::ResnetBlock2D(const WeightView& w, int64_t cin_, int64_t cout_, f
 
 void ResnetBlock2D::forward_frame(const float* x, float* out, int64_t H, int64_t W, float* scratch) const {
   EGOPD_CHECK(!has_shortcut || out != x, "a res-block that changes width cannot run in place");
-  const int64_t hw = H * W;
-  float* n1 = scratch;           // [cin, H, W]
-  float* h = scratch + cin * hw;  // [cout, H, W]
-  norm1.forward(x, n1, 1, 1, hw, /*silu=*/true);
-  conv1.forward(n1, 1, H, W, h);
-  norm2.forward(h, h, 1, 1, hw, /*silu=*/true);
-  if (has_shortcut) {
-    conv_shortcut.forward(x, 1, H, W, out);
-  } else if (out != x) {
-    std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
-  }
-  conv2.forward(h, 1, H, W, out, Act::None, /*accumulate=*/true);  // out = shortcut(x) + conv2(h)
+  run_frame(x, scratch, out, H, W, scratch + cin * H * W);
 }
 
 void ResnetBlock2D::forward_frame_consuming(float* x, float* out, int64_t H, int64_t W, float* scratch) const {
   EGOPD_CHECK(out != x, "a consuming res-block call cannot run in place");
+  run_frame(x, x, out, H, W, scratch);
+}
+
+// out = shortcut(x) + conv2(SiLU(GN2(conv1(n1)))), n1 = SiLU(GN1(x)). n1 == x normalises x in place, so the shortcut
+// is taken first; out == x (in place, no shortcut) keeps x as the residual. The sums are the same either way.
+void ResnetBlock2D::run_frame(const float* x, float* n1, float* out, int64_t H, int64_t W, float* h) const {
   const int64_t hw = H * W;
-  float* h = scratch;  // [cout, H, W]
-  // The shortcut reads x before it is normalised; the sums are those of forward_frame, in the same order.
-  if (has_shortcut) conv_shortcut.forward(x, 1, H, W, out);
-  else std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
-  norm1.forward(x, x, 1, 1, hw, /*silu=*/true);
-  conv1.forward(x, 1, H, W, h);
+  const auto shortcut = [&] {
+    if (has_shortcut) conv_shortcut.forward(x, 1, H, W, out);
+    else if (out != x) std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
+  };
+  const bool in_place_norm = n1 == x;
+  if (in_place_norm) shortcut();
+  norm1.forward(x, n1, 1, 1, hw, /*silu=*/true);
+  conv1.forward(n1, 1, H, W, h);                  // h [cout, H, W]
   norm2.forward(h, h, 1, 1, hw, /*silu=*/true);
+  if (!in_place_norm) shortcut();
   conv2.forward(h, 1, H, W, out, Act::None, /*accumulate=*/true);
 }
 

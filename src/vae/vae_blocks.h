@@ -26,6 +26,9 @@ struct ResnetBlock2D {
   // scratch holds only the [cout, H, W] hidden state. out must not alias x.
   void forward_frame_consuming(float* x, float* out, int64_t H, int64_t W, float* scratch) const;
   int64_t consuming_scratch_floats(int64_t hw) const { return cout * hw; }
+
+ private:
+  void run_frame(const float* x, float* n1, float* out, int64_t H, int64_t W, float* h) const;
 };
 
 // Mid-block attention (diffusers Attention with group norm, biases, one head of width c, residual).
