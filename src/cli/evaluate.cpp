@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string>
 
+#include "core/atomic_file.h"
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/safetensors.h"

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 
 namespace egopd {
@@ -236,56 +237,6 @@ void write_safetensors(const std::string& path, const std::vector<TensorToWrite>
   w.write(header.data(), header.size());
   for (const auto& t : tensors) w.write(t.bytes.data(), t.bytes.size());
   w.commit();
-}
-
-AtomicFileWriter::AtomicFileWriter(const std::string& path) : path_(path) {
-  tmp_ = path + ".tmp." + std::to_string(::getpid());
-  fd_ = ::open(tmp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw Error(path + ": cannot write: " + std::strerror(errno));
-}
-
-AtomicFileWriter::~AtomicFileWriter() {
-  if (fd_ >= 0) {
-    ::close(fd_);
-    ::unlink(tmp_.c_str());
-  }
-}
-
-void AtomicFileWriter::write(const void* data, size_t size) {
-  const auto* p = static_cast<const uint8_t*>(data);
-  while (size > 0) {
-    ssize_t w = ::write(fd_, p, size);
-    if (w < 0) {
-      if (errno == EINTR) continue;
-      throw Error(path_ + ": write failed: " + std::strerror(errno));
-    }
-    p += w;
-    size -= size_t(w);
-  }
-}
-
-void AtomicFileWriter::commit() {
-  const int fd = fd_;
-  fd_ = -1;
-  if (::fsync(fd) != 0 || ::close(fd) != 0) {
-    ::unlink(tmp_.c_str());
-    throw Error(path_ + ": write failed: " + std::strerror(errno));
-  }
-  if (::rename(tmp_.c_str(), path_.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp_.c_str());
-    throw Error(path_ + ": cannot rename temporary file into place: " + std::strerror(err));
-  }
-}
-
-void write_file_atomic(const std::string& path, const void* data, size_t size) {
-  AtomicFileWriter w(path);
-  w.write(data, size);
-  w.commit();
-}
-
-void write_file_atomic(const std::string& path, const std::string& text) {
-  write_file_atomic(path, text.data(), text.size());
 }
 
 }  // namespace egopd

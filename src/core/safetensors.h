@@ -80,29 +80,9 @@ TensorToWrite to_write(const std::string& name, const Tensor& t, DType as);     
 void write_safetensors(const std::string& path, const std::vector<TensorToWrite>& tensors,
                        const std::map<std::string, std::string>& metadata = {});
 
-// Streaming atomic write: data goes to `path.tmp.<pid>`; commit() fsyncs and renames it into place; destroying an
-// uncommitted writer removes the temporary file (an interrupted run leaves the old file untouched).
-class AtomicFileWriter {
- public:
-  explicit AtomicFileWriter(const std::string& path);
-  ~AtomicFileWriter();
-  AtomicFileWriter(const AtomicFileWriter&) = delete;
-  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
-  void write(const void* data, size_t size);
-  void commit();
-
- private:
-  std::string path_, tmp_;
-  int fd_ = -1;
-};
-
 // Header bytes (length prefix + JSON, padded to 8) for tensors laid out contiguously in the given order.
 std::vector<uint8_t> safetensors_header(const std::vector<std::pair<std::string, std::pair<DType, std::vector<int64_t>>>>&
                                             tensors,
                                         const std::map<std::string, std::string>& metadata);
-
-// Atomic whole-file write: `path.tmp.<pid>` then rename. Used for every output the runtime produces.
-void write_file_atomic(const std::string& path, const void* data, size_t size);
-void write_file_atomic(const std::string& path, const std::string& text);
 
 }  // namespace egopd

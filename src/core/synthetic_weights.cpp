@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/safetensors.h"
 

@@ -6,6 +6,7 @@
 #include <memory>
 #include <set>
 
+#include "core/atomic_file.h"
 #include "clip_image/clip_vision.h"
 #include "clip_text/clip_text.h"
 #include "core/error.h"

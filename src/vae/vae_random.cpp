@@ -2,6 +2,7 @@
 
 #include <filesystem>
 
+#include "core/atomic_file.h"
 #include "core/safetensors.h"
 #include "core/synthetic_weights.h"
 

@@ -1,0 +1,56 @@
+#pragma once
+// Whole-or-nothing outputs: files written to a temporary name and renamed into place, and folders built under a
+// temporary name beside their target and swapped in as a whole. An interrupted or failed run leaves the previous
+// output (or nothing) and no temporary files.
+#include <cstddef>
+#include <string>
+
+namespace egopd {
+
+// Streaming atomic write: data goes to `path.tmp.<pid>`; commit() fsyncs and renames it into place; destroying an
+// uncommitted writer removes the temporary file (an interrupted run leaves the old file untouched). Every write,
+// fsync, close and rename error is one line naming `path`.
+class AtomicFileWriter {
+ public:
+  explicit AtomicFileWriter(const std::string& path);
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+  void write(const void* data, size_t size);
+  void commit();
+
+ private:
+  std::string path_, tmp_;
+  int fd_ = -1;
+};
+
+// Atomic whole-file write: `path.tmp.<pid>` then rename. Used for every output the runtime produces.
+void write_file_atomic(const std::string& path, const void* data, size_t size);
+void write_file_atomic(const std::string& path, const std::string& text);
+
+// An output folder built whole: files are written into path() (`<parent>/.<name>.tmp-<pid>-<n>`, created here);
+// commit() puts it in place of `target`, replacing an earlier folder as a whole (nothing of the old run survives,
+// e.g. heatmaps of frames a shorter re-run does not have). Destroying an uncommitted AtomicDir removes the
+// temporary folder and everything in it.
+class AtomicDir {
+ public:
+  explicit AtomicDir(const std::string& target);
+  ~AtomicDir();
+  AtomicDir(const AtomicDir&) = delete;
+  AtomicDir& operator=(const AtomicDir&) = delete;
+  const std::string& path() const { return tmp_; }
+  const std::string& target() const { return target_; }
+  // `message` with the temporary folder's name replaced by the target's, so errors name the files users know.
+  std::string user_facing(const std::string& message) const;
+  void commit();
+
+ private:
+  std::string target_, tmp_;
+  bool committed_ = false;
+};
+
+// Temporary folders that AtomicDir would use for `target` (`.<name>.tmp-*` beside it), e.g. left by a killed
+// process; removes them and returns how many. Only for a caller that owns `target` (one writer per folder).
+int remove_stale_temporaries(const std::string& target);
+
+}  // namespace egopd

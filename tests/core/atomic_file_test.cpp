@@ -1,0 +1,136 @@
+// Whole-or-nothing outputs: AtomicDir replaces a folder as a whole or leaves it untouched; AtomicFileWriter reports
+// a full disk naming the file and leaves no temporary file; the interrupt flag turns into Interrupted.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "core/atomic_file.h"
+#include "core/interrupt.h"
+
+namespace egopd {
+namespace {
+namespace fs = std::filesystem;
+
+class AtomicOutputs : public ::testing::Test {
+ protected:
+  fs::path root;
+  void SetUp() override {
+    root = fs::temp_directory_path() / ("egopd_atomic_test_" + std::to_string(::getpid()));
+    fs::remove_all(root);
+    fs::create_directories(root);
+  }
+  void TearDown() override { fs::remove_all(root); }
+  static void put(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+  static std::string read(const fs::path& p) {
+    std::ifstream in(p);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  int entries() const { return int(std::distance(fs::directory_iterator(root), fs::directory_iterator())); }
+};
+
+TEST_F(AtomicOutputs, CommitCreatesTheFolder) {
+  {
+    AtomicDir d((root / "out").string());
+    EXPECT_FALSE(fs::exists(root / "out"));
+    put(fs::path(d.path()) / "a.txt", "new");
+    d.commit();
+  }
+  EXPECT_EQ(read(root / "out" / "a.txt"), "new");
+  EXPECT_EQ(entries(), 1);  // no temporary folder left
+}
+
+TEST_F(AtomicOutputs, CommitReplacesAnEarlierFolderAsAWhole) {
+  fs::create_directories(root / "out");
+  put(root / "out" / "heatmap_009.png", "old run, more frames");
+  put(root / "out" / "a.txt", "old");
+  {
+    AtomicDir d((root / "out/").string());  // a trailing separator names the same folder
+    put(fs::path(d.path()) / "a.txt", "new");
+    d.commit();
+  }
+  EXPECT_EQ(read(root / "out" / "a.txt"), "new");
+  EXPECT_FALSE(fs::exists(root / "out" / "heatmap_009.png"));
+  EXPECT_EQ(entries(), 1);
+}
+
+TEST_F(AtomicOutputs, UncommittedFolderIsRemovedAndTheOldOneKept) {
+  fs::create_directories(root / "out");
+  put(root / "out" / "a.txt", "old");
+  try {
+    AtomicDir d((root / "out").string());
+    put(fs::path(d.path()) / "a.txt", "half");
+    throw Error("stage failed");
+  } catch (const Error&) {
+  }
+  EXPECT_EQ(read(root / "out" / "a.txt"), "old");
+  EXPECT_EQ(entries(), 1);
+}
+
+TEST_F(AtomicOutputs, StaleTemporariesOfAKilledRunAreFound) {
+  fs::create_directories(root / ".clip.tmp-123-0" / "x");
+  fs::create_directories(root / ".other.tmp-123-0");
+  EXPECT_EQ(remove_stale_temporaries((root / "clip").string()), 1);
+  EXPECT_FALSE(fs::exists(root / ".clip.tmp-123-0"));
+  EXPECT_TRUE(fs::exists(root / ".other.tmp-123-0"));
+}
+
+TEST_F(AtomicOutputs, TargetThatIsAFileIsAnError) {
+  put(root / "out", "a file");
+  try {
+    AtomicDir d((root / "out").string());
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not a folder"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(read(root / "out"), "a file");
+}
+
+// A full disk, emulated with a file-size limit (write() then fails with EFBIG instead of raising SIGXFSZ).
+TEST_F(AtomicOutputs, FullDiskNamesTheFileAndKeepsTheOldOne) {
+  put(root / "taxels.csv", "old complete file\n");
+  struct rlimit old {};
+  ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &old), 0);
+  void (*old_handler)(int) = ::signal(SIGXFSZ, SIG_IGN);
+  struct rlimit small = old;
+  small.rlim_cur = 4096;
+  ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &small), 0);
+  std::string message;
+  try {
+    write_file_atomic((root / "taxels.csv").string(), std::string(100000, 'x'));
+  } catch (const Error& e) {
+    message = e.what();
+  }
+  ::setrlimit(RLIMIT_FSIZE, &old);
+  ::signal(SIGXFSZ, old_handler);
+  EXPECT_NE(message.find((root / "taxels.csv").string() + ": write failed"), std::string::npos) << message;
+  EXPECT_EQ(message.find('\n'), std::string::npos);
+  EXPECT_EQ(read(root / "taxels.csv"), "old complete file\n");
+  EXPECT_EQ(entries(), 1);  // the temporary file is gone
+}
+
+TEST(Interrupt, PendingSignalBecomesInterruptedWithItsExitCode) {
+  clear_interrupt();
+  EXPECT_NO_THROW(throw_if_interrupted("after step 1 of 4"));
+  request_interrupt(SIGTERM);
+  try {
+    throw_if_interrupted("after step 2 of 4");
+    FAIL() << "no Interrupted";
+  } catch (const Interrupted& e) {
+    EXPECT_EQ(e.exit_code(), 143);
+    EXPECT_NE(std::string(e.what()).find("SIGTERM after step 2 of 4"), std::string::npos) << e.what();
+  }
+  clear_interrupt();
+  install_interrupt_handlers();
+  ::raise(SIGINT);  // recorded by the handler, not fatal
+  EXPECT_EQ(pending_interrupt(), SIGINT);
+  EXPECT_THROW(throw_if_interrupted(), Interrupted);
+  clear_interrupt();
+}
+
+}  // namespace
+}  // namespace egopd
