@@ -5,6 +5,7 @@
 #include <new>
 
 #include "core/error.h"
+#include "core/interrupt.h"
 
 namespace egopd {
 
@@ -86,6 +87,9 @@ void Args::finish() const {
 int run_reporting_errors(const char* program, const std::function<int()>& body) {
   try {
     return body();
+  } catch (const Interrupted& e) {  // SIGINT/SIGTERM at a safe point: 130 / 143, as a shell reports a signal
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    return e.exit_code();
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "%s: out of memory\n", program);
   } catch (const std::exception& e) {  // egopd::Error and anything else: already one line

@@ -31,7 +31,8 @@ class Args {
   mutable std::set<std::string> read_;
 };
 
-// Runs a command-line program's body: any failure becomes one line "<program>: <message>" on stderr and exit code 1.
+// Runs a command-line program's body: any failure becomes one line "<program>: <message>" on stderr and exit code 1
+// (130 / 143 after SIGINT / SIGTERM).
 int run_reporting_errors(const char* program, const std::function<int()>& body);
 
 }  // namespace egopd

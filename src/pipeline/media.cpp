@@ -13,6 +13,7 @@
 #include <opencv2/videoio.hpp>
 #include <opencv2/videoio/registry.hpp>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/safetensors.h"
 
@@ -220,33 +221,44 @@ void write_png_atomic(const std::string& path, const cv::Mat& bgr) {
 
 void write_video_atomic(const std::string& path, const std::vector<cv::Mat>& bgr, double fps) {
   if (bgr.empty()) throw Error(path + ": no frames to write");
+  for (const cv::Mat& m : bgr)
+    if (m.size() != bgr[0].size()) throw Error(path + ": video frames differ in size");
   const fs::path p(path);
   // The temporary name keeps the .mp4 extension: OpenCV picks the container from it.
   std::string name = ".";  // appended piecewise: GCC 12 warns (-Wrestrict, falsely) on the chained operator+
   name += p.stem().string();
   name += ".tmp" + std::to_string(::getpid()) + ".mp4";
   const fs::path tmp = p.parent_path() / name;
+  struct RemoveOnFailure {
+    fs::path file;
+    bool keep = false;
+    ~RemoveOnFailure() {
+      std::error_code ec;
+      if (!keep) fs::remove(file, ec);
+    }
+  } guard{tmp};
   {
     cv::VideoWriter w(tmp.string(), video_backend(), cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, bgr[0].size(),
                       true);
     if (!w.isOpened()) throw Error(path + ": cannot open an MPEG-4 video writer (OpenCV built without a video backend?)");
-    for (const cv::Mat& m : bgr) {
-      if (m.size() != bgr[0].size()) throw Error(path + ": video frames differ in size");
-      w.write(m);
-    }
+    for (const cv::Mat& m : bgr) w.write(m);
     w.release();
   }
+  // OpenCV's writer reports no I/O errors (a full disk truncates the file silently): read the frame count back.
   std::error_code ec;
-  if (!fs::exists(tmp) || fs::file_size(tmp, ec) == 0) {
-    fs::remove(tmp, ec);
-    throw Error(path + ": video writer produced no file");
+  if (!fs::exists(tmp) || fs::file_size(tmp, ec) == 0) throw Error(path + ": video writer produced no file");
+  int64_t written = 0;
+  {
+    cv::VideoCapture r(tmp.string(), video_backend());
+    cv::Mat frame;
+    while (r.isOpened() && r.read(frame)) ++written;
   }
+  if (written != int64_t(bgr.size()))
+    throw Error(path + ": video writer stored " + std::to_string(written) + " of " + std::to_string(bgr.size()) +
+                " frames (disk full or write error)");
   fs::rename(tmp, p, ec);
-  if (ec) {
-    const std::string why = ec.message();
-    fs::remove(tmp, ec);
-    throw Error(path + ": cannot move the video into place (" + why + ")");
-  }
+  if (ec) throw Error(path + ": cannot move the video into place (" + ec.message() + ")");
+  guard.keep = true;
 }
 
 }  // namespace egopd

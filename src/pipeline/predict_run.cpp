@@ -15,7 +15,9 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/interrupt.h"
 #include "core/memory.h"
 #include "core/safetensors.h"
 #include "core/timing.h"
@@ -70,6 +72,7 @@ class StepProgress {
     }
     if (i == n) std::fprintf(stderr, "%sdecoding %s\n", prefix_.c_str(), "(temporal VAE) and reading out taxels");
     std::fflush(stderr);
+    throw_if_interrupted("after step " + std::to_string(i) + " of " + std::to_string(n));
   }
 
  private:
@@ -78,15 +81,16 @@ class StepProgress {
   double sum_ = 0;
 };
 
+// One clip on a loaded model: resolved settings, the sampled frames and masks, and the stage times so far.
 struct Prepared {
   Clock::time_point start;
-  std::string model_dir;
-  bool builtin_model = false, builtin_clip = false;
-  std::unique_ptr<EgoPressureDiffPipeline> pipe;
+  const PredictModel* model = nullptr;
+  bool builtin_clip = false;
   PipelineSettings settings;
   LoadedClip clip;
   Tensor frames, masks;
-  StageTimes times;  // loading and encoding (shared by every prompt)
+  StageTimes times;  // encoding (shared by every prompt)
+  EgoPressureDiffPipeline& pipe() const { return model->pipeline(); }
 };
 
 void require_exists(const std::string& path, const std::string& what) {
@@ -99,9 +103,8 @@ std::string model_scheduler_name(const std::string& model_dir) {
   return load_sampler(cfg.string())->name();
 }
 
-Prepared prepare(const PredictOptions& o) {
-  Prepared p;
-  p.start = Clock::now();
+// Checks of the options that need no model and no clip, before any work.
+void check_options(const PredictOptions& o) {
   if (o.out_dir.empty()) throw Error("--out is required");
   if (o.size < 64 || o.size % 64) throw Error("--size must be a positive multiple of 64 (got " + std::to_string(o.size) + ")");
   if (o.prompt && !o.meta_path.empty()) throw Error("give either --prompt or --meta, not both");
@@ -115,46 +118,29 @@ Prepared prepare(const PredictOptions& o) {
   require_exists(o.masks_dir, "mask folder");
   require_exists(o.meta_path, "metadata file");
   require_exists(o.template_path, "hand template");
-  std::error_code ec;
-  fs::create_directories(o.out_dir, ec);
-  if (!fs::is_directory(o.out_dir)) throw Error(o.out_dir + ": cannot create output folder");
+}
 
-  p.builtin_model = o.model_dir.empty();
-  p.model_dir = p.builtin_model ? default_model_dir(o.out_dir) : o.model_dir;
-  {
-    ScopedStage st(&p.times, "load");
-    if (p.builtin_model) {
-      if (!fs::exists(fs::path(p.model_dir) / "model_index.json")) {
-        say("creating the built-in synthetic model (tiny preset, random weights) in %s", p.model_dir.c_str());
-        write_synthetic_model(p.model_dir, "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
-      }
-      say("model: built-in SYNTHETIC model %s (random weights: the pressures are NOT meaningful)", p.model_dir.c_str());
-    }
-    say("loading model %s (%lldx%lld)", p.model_dir.c_str(), static_cast<long long>(o.size),
-        static_cast<long long>(o.size));
-    if (o.low_mem) say("low-memory mode: components are loaded one at a time and released after use");
-    p.pipe = std::make_unique<EgoPressureDiffPipeline>(p.model_dir, o.size, o.template_path, o.low_mem);
-  }
-  const EgoPressureDiffPipeline& pipe = *p.pipe;
-  const HandTemplate& t = pipe.hand_template();
-  say("hand template: %s%s", t.name().c_str(), t.synthetic() ? " (SYNTHETIC layout, not the real glove)" : "");
-  if (!pipe.renderer().warnings().empty())
-    say("warning: %zu template sensors lie outside the hand region (first: %s)", pipe.renderer().warnings().size(),
-        pipe.renderer().warnings()[0].c_str());
-
+// Settings, frames and masks of one clip; the built-in sample clip is saved into work_dir.
+Prepared prepare_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
+                      const std::string& work_dir, const std::string& prefix) {
+  Prepared p;
+  p.start = Clock::now();
+  p.model = &model;
+  require_exists(src.video, "video file or frame folder");
+  require_exists(src.masks_dir, "mask folder");
   PipelineSettings& s = p.settings;
-  s = pipe.settings_from_defaults();
+  s = p.pipe().settings_from_defaults();
   if (o.frames > 0) s.frames = o.frames;
   s.sampler = o.sampler;
-  s.steps = resolve_steps(o, model_scheduler_name(p.model_dir));
+  s.steps = resolve_steps(o, model_scheduler_name(model.model_dir()));
   s.seed = o.seed;
   if (o.guidance) s.min_guidance = o.guidance->first, s.max_guidance = o.guidance->second;
   s.decode_chunk = o.decode_chunk;
 
   const int S = int(o.size);
-  p.builtin_clip = o.video.empty();
+  p.builtin_clip = src.video.empty();
   if (p.builtin_clip) {
-    const std::string sample = (fs::path(o.out_dir) / "sample_clip.mp4").string();
+    const std::string sample = (fs::path(work_dir) / "sample_clip.mp4").string();
     p.clip.rgb = synthetic_sample_clip(int(s.frames), S);
     p.clip.source_frames = s.frames;
     for (int64_t i = 0; i < s.frames; ++i) p.clip.source_indices.push_back(i);
@@ -165,15 +151,15 @@ Prepared prepare(const PredictOptions& o) {
       bgr.push_back(b);
     }
     write_video_atomic(sample, bgr, kVideoFps);
-    say("clip: built-in SYNTHETIC sample clip (%lld frames, saved as %s)", static_cast<long long>(s.frames),
-        sample.c_str());
-  } else {
-    p.clip = load_clip(o.video, s.frames, S);
-    say("clip: %s (%lld frames, %lld sampled)", o.video.c_str(), static_cast<long long>(p.clip.source_frames),
+    say("%sclip: built-in SYNTHETIC sample clip (%lld frames, saved as sample_clip.mp4)", prefix.c_str(),
         static_cast<long long>(s.frames));
+  } else {
+    p.clip = load_clip(src.video, s.frames, S);
+    say("%sclip: %s (%lld frames, %lld sampled)", prefix.c_str(), src.video.c_str(),
+        static_cast<long long>(p.clip.source_frames), static_cast<long long>(s.frames));
   }
   p.frames = frames_to_tensor(p.clip.rgb);
-  if (!o.masks_dir.empty()) p.masks = load_masks(o.masks_dir, s.frames, S);
+  if (!src.masks_dir.empty()) p.masks = load_masks(src.masks_dir, s.frames, S);
   return p;
 }
 
@@ -212,7 +198,7 @@ FrameForces write_outputs(const std::string& dir, const Prepared& p, const EgoPr
   std::vector<cv::Mat> side;
   for (size_t f = 0; f < r.frames.size(); ++f) {
     const PressureRenderer::Frame& fr = r.frames[f];
-    cv::Mat heat = painted(*p.pipe, fr.h_std);
+    cv::Mat heat = painted(p.pipe(), fr.h_std);
     write_png_atomic((fs::path(dir) / numbered("heatmap", f, "png")).string(), heat);
     cv::Mat rgb_bgr, pair;
     cv::cvtColor(p.clip.rgb[f], rgb_bgr, cv::COLOR_RGB2BGR);
@@ -237,8 +223,9 @@ ojson timings_json(const StageTimes& t, double total) {
   return j;
 }
 
-ojson summary_json(const PredictOptions& o, const Prepared& p, const EgoPressureDiffPipeline::Shared& sh,
-                   const std::optional<std::string>& prompt, bool truncated, const FrameForces& ff) {
+ojson summary_json(const PredictOptions& o, const ClipSource& src, const Prepared& p,
+                   const EgoPressureDiffPipeline::Shared& sh, const std::optional<std::string>& prompt, bool truncated,
+                   const FrameForces& ff) {
   ojson j;
   j["prompt"] = prompt ? ojson(*prompt) : ojson(nullptr);
   j["prompt_truncated"] = truncated;
@@ -246,15 +233,16 @@ ojson summary_json(const PredictOptions& o, const Prepared& p, const EgoPressure
   j["sampler"] = sh.sampler->name();
   j["steps"] = sh.sampler->num_steps();
   j["frames"] = sh.frames;
-  j["size"] = p.pipe->size();
+  j["size"] = p.pipe().size();
   j["guidance"] = {p.settings.min_guidance, p.settings.max_guidance};
   j["low_mem"] = o.low_mem;
   j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : sh.frames;
-  j["model_dir"] = p.model_dir;
-  j["model_synthetic"] = p.builtin_model;
-  j["video"] = p.builtin_clip ? ojson("sample_clip.mp4 (built-in synthetic clip)") : ojson(o.video);
-  j["masks"] = o.masks_dir.empty() ? ojson(nullptr) : ojson(o.masks_dir);
-  j["template"] = {{"name", p.pipe->hand_template().name()}, {"synthetic", p.pipe->hand_template().synthetic()}};
+  j["model_dir"] = p.model->model_dir();
+  j["model_synthetic"] = p.model->builtin();
+  j["video"] = p.builtin_clip ? ojson("sample_clip.mp4 (built-in synthetic clip)") : ojson(src.video);
+  j["masks"] = src.masks_dir.empty() ? ojson(nullptr) : ojson(src.masks_dir);
+  const HandTemplate& t = p.pipe().hand_template();
+  j["template"] = {{"name", t.name()}, {"synthetic", t.synthetic()}};
   ojson frames = ojson::array();
   for (size_t f = 0; f < ff.total_n.size(); ++f)
     frames.push_back({{"frame", f},
@@ -273,16 +261,37 @@ void finish_summary(ojson& j, const std::string& dir, const StageTimes& times, d
   write_file_atomic((fs::path(dir) / "summary.json").string(), j.dump(2) + "\n");
 }
 
-std::optional<std::string> prompt_of(const PredictOptions& o, const EgoPressureDiffPipeline& pipe) {
-  if (o.prompt) return o.prompt;
-  if (!o.meta_path.empty()) return pipe.prompt_for(load_prompt_fields(o.meta_path));
+std::optional<std::string> prompt_of(const ClipSource& src, const EgoPressureDiffPipeline& pipe) {
+  if (src.prompt) return src.prompt;
+  if (src.meta) return pipe.prompt_for(*src.meta);
   return std::nullopt;
+}
+
+ClipSource clip_source(const PredictOptions& o) {
+  ClipSource src{o.video, o.masks_dir, o.prompt, std::nullopt};
+  if (!o.meta_path.empty()) src.meta = load_prompt_fields(o.meta_path);
+  return src;
 }
 
 void announce_prompt(const std::optional<std::string>& prompt, bool truncated, const std::string& prefix) {
   if (prompt) say("%sprompt: \"%s\"", prefix.c_str(), prompt->c_str());
   else say("%sno prompt: no-text mode", prefix.c_str());
   if (truncated) say("%swarning: the prompt is longer than 77 CLIP tokens and was truncated", prefix.c_str());
+}
+
+// Runs `fill` on the temporary folder of `out`, then moves the folder into place. Errors name the target's files,
+// not the temporary ones; an interruption that arrives while filling still leaves nothing behind.
+template <class Fill>
+void fill_then_commit(AtomicDir& out, Fill&& fill) {
+  try {
+    fill(out.path());
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const Error& e) {
+    throw Error(out.user_facing(e.what()));
+  }
+  throw_if_interrupted("before moving the outputs into place");
+  out.commit();
 }
 
 }  // namespace
@@ -359,39 +368,89 @@ std::string cache_root() {
 std::string default_model_dir(const std::string& out_dir) {
   const std::string root = cache_root();
   if (!root.empty()) return (fs::path(root) / kBuiltinName).string();
-  return (fs::path(out_dir) / ".egopd-default-model").string();
+  // Beside the output folder, not in it: the output folder is replaced as a whole by each run.
+  const fs::path parent = fs::path(out_dir).lexically_normal().parent_path();
+  return ((parent.empty() ? fs::path(".") : parent) / ".egopd-default-model").string();
 }
 
-int run_predict(const PredictOptions& o) {
-  Prepared p = prepare(o);
-  EgoPressureDiffPipeline& pipe = *p.pipe;
+PredictModel::PredictModel(const PredictOptions& o) {
+  const auto start = Clock::now();
+  check_options(o);
+  builtin_ = o.model_dir.empty();
+  model_dir_ = builtin_ ? default_model_dir(o.out_dir) : o.model_dir;
+  if (builtin_) {
+    if (!fs::exists(fs::path(model_dir_) / "model_index.json")) {
+      say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
+      write_synthetic_model(model_dir_, "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
+    }
+    say("model: built-in SYNTHETIC model %s (random weights: the pressures are NOT meaningful)", model_dir_.c_str());
+  }
+  say("loading model %s (%lldx%lld)", model_dir_.c_str(), static_cast<long long>(o.size),
+      static_cast<long long>(o.size));
+  if (o.low_mem) say("low-memory mode: components are loaded one at a time and released after use");
+  pipe_ = std::make_unique<EgoPressureDiffPipeline>(model_dir_, o.size, o.template_path, o.low_mem);
+  const HandTemplate& t = pipe_->hand_template();
+  say("hand template: %s%s", t.name().c_str(), t.synthetic() ? " (SYNTHETIC layout, not the real glove)" : "");
+  if (!pipe_->renderer().warnings().empty())
+    say("warning: %zu template sensors lie outside the hand region (first: %s)", pipe_->renderer().warnings().size(),
+        pipe_->renderer().warnings()[0].c_str());
+  load_seconds_ = seconds_since(start);
+}
+
+PredictModel::~PredictModel() = default;
+
+ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
+                         const std::string& out_dir, const std::string& prefix) {
+  AtomicDir out(out_dir);
+  Prepared p = prepare_clip(model, o, src, out.path(), prefix);
+  EgoPressureDiffPipeline& pipe = p.pipe();
   StageTimes& times = p.times;
-  const std::optional<std::string> prompt = prompt_of(o, pipe);
+  const std::optional<std::string> prompt = prompt_of(src, pipe);
   bool truncated = false;
   const Tensor text = pipe.encode_text(prompt, &truncated, &times);
-  announce_prompt(prompt, truncated, "");
+  announce_prompt(prompt, truncated, prefix);
+  throw_if_interrupted("before encoding");
 
-  say("encoding %lld frames (VAE, %s, prototype)", static_cast<long long>(p.settings.frames),
+  say("%sencoding %lld frames (VAE, %s, prototype)", prefix.c_str(), static_cast<long long>(p.settings.frames),
       p.masks.empty() ? "no masks" : "masks");
   const EgoPressureDiffPipeline::Shared sh =
       pipe.encode(p.frames, p.masks.empty() ? nullptr : &p.masks, p.settings, &times);
-  say("denoising: %s sampler, %d steps, seed %llu", sh.sampler->name(), sh.sampler->num_steps(),
+  throw_if_interrupted("after encoding");
+  say("%sdenoising: %s sampler, %d steps, seed %llu", prefix.c_str(), sh.sampler->name(), sh.sampler->num_steps(),
       static_cast<unsigned long long>(o.seed));
-  const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, StepProgress(""), &times);
+  const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, StepProgress(prefix), &times);
+  throw_if_interrupted("after decoding");
 
-  say("writing outputs");
+  say("%swriting outputs", prefix.c_str());
   FrameForces ff;
-  {
-    ScopedStage st(&times, "write");
-    ff = write_outputs(o.out_dir, p, r);
-  }
-  ojson j = summary_json(o, p, sh, prompt, truncated, ff);
-  const double total = seconds_since(p.start);
-  finish_summary(j, o.out_dir, times, total);
-  say("done in %.1f s: mean total force %.2f N, peak %.2f N%s", total, ff.mean(), ff.peak(),
-      p.builtin_model ? " (synthetic model: not meaningful)" : "");
-  say("outputs in %s: heatmap_000.png..heatmap_%03zu.png, side_by_side.mp4, taxels.csv, summary.json",
-      o.out_dir.c_str(), r.frames.empty() ? size_t(0) : r.frames.size() - 1);
+  double total = 0;
+  fill_then_commit(out, [&](const std::string& dir) {
+    {
+      ScopedStage st(&times, "write");
+      ff = write_outputs(dir, p, r);
+    }
+    ojson j = summary_json(o, src, p, sh, prompt, truncated, ff);
+    total = seconds_since(p.start);
+    finish_summary(j, dir, times, total);
+  });
+  ClipOutcome c;
+  c.frames = int64_t(ff.total_n.size());
+  c.mean_total_force_n = ff.mean();
+  c.peak_total_force_n = ff.peak();
+  c.seconds = total;
+  return c;
+}
+
+int run_predict(const PredictOptions& o) {
+  install_interrupt_handlers();
+  check_options(o);
+  const ClipSource src = clip_source(o);
+  const PredictModel model(o);
+  const ClipOutcome c = predict_clip(model, o, src, o.out_dir);
+  say("done in %.1f s: mean total force %.2f N, peak %.2f N%s", model.load_seconds() + c.seconds,
+      c.mean_total_force_n, c.peak_total_force_n, model.builtin() ? " (synthetic model: not meaningful)" : "");
+  say("outputs in %s: heatmap_000.png..heatmap_%03lld.png, side_by_side.mp4, taxels.csv, summary.json",
+      o.out_dir.c_str(), static_cast<long long>(c.frames > 0 ? c.frames - 1 : 0));
   return 0;
 }
 
@@ -451,15 +510,12 @@ cv::Mat comparison_figure(const std::vector<std::string>& labels, const std::vec
   return fig;
 }
 
-}  // namespace
-
-int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
-  if (o.prompt) throw Error("counterfactual varies prompt fields: give --meta (or nothing), not --prompt");
-  if (vary.values.empty()) throw Error("--vary needs at least one value");
-  Prepared p = prepare(o);
-  EgoPressureDiffPipeline& pipe = *p.pipe;
-  const PromptFields base = o.meta_path.empty() ? PromptFields{} : load_prompt_fields(o.meta_path);
-  const std::vector<Variant> variants = make_variants(base, vary);
+// Encodes the clip once, denoises once per variant and writes every variant folder, comparison.png and forces.csv
+// into `root`; returns the closing summary line.
+std::string counterfactual_into(const std::string& root, const PredictModel& model, const PredictOptions& o,
+                                const ClipSource& src, const std::vector<Variant>& variants, const VarySpec& vary) {
+  Prepared p = prepare_clip(model, o, src, root, "");
+  EgoPressureDiffPipeline& pipe = p.pipe();
 
   say("encoding %lld frames once (VAE, %s, prototype, seed-%llu noise)", static_cast<long long>(p.settings.frames),
       p.masks.empty() ? "no masks" : "masks", static_cast<unsigned long long>(o.seed));
@@ -488,7 +544,7 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
     announce_prompt(prompt, truncated, prefix);
     say("%sdenoising: %s sampler, %d steps", prefix, sh.sampler->name(), sh.sampler->num_steps());
     const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, StepProgress(prefix), &vt);
-    const std::string dir = (fs::path(o.out_dir) / v.folder).string();
+    const std::string dir = (fs::path(root) / v.folder).string();
     FrameForces ff;
     {
       ScopedStage st(&vt, "write");
@@ -502,7 +558,7 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
     labels.push_back(v.label);
     labels.push_back(force);
     const double secs = seconds_since(t0);
-    ojson j = summary_json(o, p, sh, prompt, truncated, ff);
+    ojson j = summary_json(o, src, p, sh, prompt, truncated, ff);
     j["variant"] = {{"field", vary.field}, {"value", v.value}};
     j["shared_timings_s"] = timings_json(p.times, shared_seconds);
     finish_summary(j, dir, vt, secs);
@@ -512,12 +568,12 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
       std::snprintf(b, sizeof b, "%s%s %.2f s", stages.empty() ? "" : ", ", name.c_str(), s);
       stages += b;
     }
-    say("%s%s: %.2f s (%s) -> %s", prefix, v.folder.c_str(), secs, stages.c_str(), dir.c_str());
+    say("%s%s: %.2f s (%s)", prefix, v.folder.c_str(), secs, stages.c_str());
     forces.push_back(ff);
     variant_seconds.push_back(secs);
   }
 
-  write_png_atomic((fs::path(o.out_dir) / "comparison.png").string(), comparison_figure(labels, cells, columns));
+  write_png_atomic((fs::path(root) / "comparison.png").string(), comparison_figure(labels, cells, columns));
   std::string csv = "variant,field,value,mean_total_force_n,peak_total_force_n,contact_frames,seconds\n";
   std::printf("%-28s %-16s %12s %12s %8s %9s\n", "variant", "value", "mean_N", "peak_N", "contact", "seconds");
   for (size_t k = 0; k < variants.size(); ++k) {
@@ -534,13 +590,34 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
                 variant_seconds[k]);
   }
   std::fflush(stdout);
-  write_file_atomic((fs::path(o.out_dir) / "forces.csv").string(), csv);
+  write_file_atomic((fs::path(root) / "forces.csv").string(), csv);
   double per_variant = 0;
   for (double s : variant_seconds) per_variant += s;
-  say("done in %.1f s: loading + encoding %.2f s once, %zu variants %.2f s (%.2f s each)", seconds_since(p.start),
-      shared_seconds, variants.size(), per_variant, per_variant / double(variants.size()));
+  char line[256];
+  std::snprintf(line, sizeof line, "done in %.1f s: loading + encoding %.2f s once, %zu variants %.2f s (%.2f s each)",
+                model.load_seconds() + seconds_since(p.start), shared_seconds, variants.size(), per_variant,
+                per_variant / double(variants.size()));
+  return line;
+}
+
+}  // namespace
+
+int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
+  if (o.prompt) throw Error("counterfactual varies prompt fields: give --meta (or nothing), not --prompt");
+  if (vary.values.empty()) throw Error("--vary needs at least one value");
+  install_interrupt_handlers();
+  check_options(o);
+  const ClipSource src = clip_source(o);
+  const PromptFields base = src.meta ? *src.meta : PromptFields{};
+  const std::vector<Variant> variants = make_variants(base, vary);
+  const PredictModel model(o);
+  AtomicDir out(o.out_dir);  // every variant, the figure and forces.csv appear together or not at all
+  std::string done;
+  fill_then_commit(out,
+                   [&](const std::string& dir) { done = counterfactual_into(dir, model, o, src, variants, vary); });
+  say("%s", done.c_str());
   say("outputs in %s: one folder per variant (%s, ...), comparison.png, forces.csv%s", o.out_dir.c_str(),
-      variants[0].folder.c_str(), p.builtin_model ? " (synthetic model: forces not meaningful)" : "");
+      variants[0].folder.c_str(), model.builtin() ? " (synthetic model: forces not meaningful)" : "");
   return 0;
 }
 

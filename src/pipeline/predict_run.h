@@ -4,12 +4,18 @@
 // and the output folder (heatmap PNGs, side-by-side MP4, taxels.csv, summary.json). Kept in the pipeline library so
 // the tests drive exactly what the CLI runs.
 #include <cstdint>
+#include <memory>
 #include <optional>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
 
 namespace egopd {
+
+class EgoPressureDiffPipeline;
+struct StageTimes;
+using PromptFields = std::map<std::string, std::string>;
 
 struct PredictOptions {
   std::string model_dir;  // empty: the built-in synthetic model (created once in a cache folder)
@@ -46,10 +52,50 @@ VarySpec parse_vary(const std::string& text);
 std::string variant_folder_name(const std::string& field, const std::string& formatted_value);
 
 // Folder of the built-in synthetic model: $XDG_CACHE_HOME/egopd/..., else ~/.cache/egopd/..., else (not writable)
-// <out_dir>/.egopd-default-model. Created on first use.
+// .egopd-default-model beside out_dir. Created on first use.
 std::string default_model_dir(const std::string& out_dir);
 // egopd's cache folder ($XDG_CACHE_HOME/egopd, else ~/.cache/egopd), created; empty when neither is writable.
 std::string cache_root();
+
+// The model of a prediction run, loaded once (o.model_dir or the built-in synthetic model, o.size, o.template_path,
+// o.low_mem) and used for any number of clips.
+class PredictModel {
+ public:
+  explicit PredictModel(const PredictOptions& o);
+  ~PredictModel();
+  const std::string& model_dir() const { return model_dir_; }
+  bool builtin() const { return builtin_; }
+  double load_seconds() const { return load_seconds_; }
+  EgoPressureDiffPipeline& pipeline() const { return *pipe_; }
+
+ private:
+  std::string model_dir_;
+  bool builtin_ = false;
+  double load_seconds_ = 0;
+  std::unique_ptr<EgoPressureDiffPipeline> pipe_;
+};
+
+// One clip's inputs: a video file or frame folder (empty: the built-in sample clip), optional hint masks, and the
+// prompt (verbatim, or from metadata fields, or neither: no-text mode).
+struct ClipSource {
+  std::string video;
+  std::string masks_dir;
+  std::optional<std::string> prompt;
+  std::optional<PromptFields> meta;
+};
+
+struct ClipOutcome {
+  int64_t frames = 0;
+  double mean_total_force_n = 0, peak_total_force_n = 0;
+  double seconds = 0;
+};
+
+// Predicts one clip with a loaded model and writes heatmap PNGs, side_by_side.mp4, taxels.csv and summary.json
+// into out_dir as a whole (built beside it and renamed into place; an earlier folder is replaced, a failed or
+// interrupted run leaves it untouched). Progress lines on stderr start with `prefix`. SIGINT/SIGTERM are polled
+// after every sampler step (throws Interrupted).
+ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& clip,
+                         const std::string& out_dir, const std::string& prefix = "");
 
 // Run one prediction and write its outputs into o.out_dir. Returns 0.
 int run_predict(const PredictOptions& o);

@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <csignal>
+
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -11,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/interrupt.h"
 #include "pipeline/egopressurediff.h"
 #include "pipeline/media.h"
 #include "pipeline/predict_run.h"
@@ -149,6 +152,58 @@ TEST_F(Predict, OneLineErrors) {
   EXPECT_THROW(run_predict(o), Error);
   o.meta_path.clear();
   EXPECT_THROW(run_counterfactual(o, parse_vary("weight=1")), Error);  // a verbatim prompt cannot be varied
+}
+
+// Names in a folder that belong to a temporary output (AtomicDir's `.<name>.tmp-*` or a writer's `*.tmp.*`).
+int temporaries_in(const fs::path& dir) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().filename().string().find(".tmp") != std::string::npos) ++n;
+  return n;
+}
+
+TEST_F(Predict, RerunReplacesTheFolderAsAWhole) {
+  PredictOptions o = options("rerun");
+  o.frames = 3;
+  ASSERT_EQ(run_predict(o), 0);
+  ASSERT_TRUE(fs::exists(root / "rerun" / "heatmap_002.png"));
+  o.frames = 2;
+  ASSERT_EQ(run_predict(o), 0);
+  expect_prediction_folder(root / "rerun", 2);
+  EXPECT_FALSE(fs::exists(root / "rerun" / "heatmap_002.png"));  // nothing of the earlier, longer run survives
+  EXPECT_EQ(temporaries_in(root), 0);
+}
+
+TEST_F(Predict, FailedOrInterruptedRunKeepsThePreviousFolder) {
+  PredictOptions o = options("keep");
+  ASSERT_EQ(run_predict(o), 0);
+  const std::string before = read(root / "keep" / "taxels.csv");
+
+  PredictOptions bad = o;
+  bad.masks_dir = (root / "masks").string();
+  bad.frames = 3;  // 2 masks: fails after the model loaded
+  EXPECT_THROW(run_predict(bad), Error);
+  EXPECT_EQ(read(root / "keep" / "taxels.csv"), before);
+  EXPECT_EQ(temporaries_in(root), 0);
+
+  PredictOptions other = o;
+  other.seed = 4;
+  request_interrupt(SIGTERM);  // as if SIGTERM arrived during the run: it stops at the first safe point
+  try {
+    run_predict(other);
+    ADD_FAILURE() << "no Interrupted";
+  } catch (const Interrupted& e) {
+    EXPECT_EQ(e.exit_code(), 143);
+  }
+  clear_interrupt();
+  EXPECT_EQ(read(root / "keep" / "taxels.csv"), before);
+  EXPECT_EQ(temporaries_in(root), 0);
+
+  request_interrupt(SIGINT);
+  EXPECT_THROW(run_counterfactual(other, parse_vary("weight=1,omit")), Interrupted);
+  clear_interrupt();
+  EXPECT_FALSE(fs::exists(other.out_dir + "/weight_1g"));
+  EXPECT_EQ(temporaries_in(root), 0);
 }
 
 }  // namespace
