@@ -50,6 +50,23 @@ std::vector<std::string> list_image_files(const std::string& dir) {
   return files;
 }
 
+std::vector<std::string> files_with_stem_suffix(const std::vector<std::string>& files, const std::string& suffix) {
+  std::vector<std::string> out;
+  for (const std::string& f : files) {
+    const std::string stem = fs::path(f).stem().string();
+    if (stem.size() >= suffix.size() && stem.compare(stem.size() - suffix.size(), suffix.size(), suffix) == 0)
+      out.push_back(f);
+  }
+  return out;
+}
+
+// The images of a folder, or only those named *<suffix> when there are any.
+static std::vector<std::string> role_files(const std::string& dir, const std::string& suffix) {
+  std::vector<std::string> files = list_image_files(dir);
+  std::vector<std::string> role = files_with_stem_suffix(files, suffix);
+  return role.empty() ? files : role;
+}
+
 cv::Mat squash_to_square(const cv::Mat& img, int size) {
   const auto interp = [](int from, int to) { return to < from ? cv::INTER_AREA : cv::INTER_LINEAR; };
   cv::Mat out;
@@ -83,7 +100,7 @@ static cv::Mat to_rgb8(const cv::Mat& bgr, const std::string& source) {
 }
 
 static LoadedClip load_folder(const std::string& dir, int64_t frames, int size) {
-  const std::vector<std::string> files = list_image_files(dir);
+  const std::vector<std::string> files = role_files(dir, "_rgb");
   if (files.empty()) throw Error(dir + ": folder holds no images (png, jpg, jpeg, bmp, tif, tiff, webp)");
   LoadedClip c;
   c.source_frames = int64_t(files.size());
@@ -154,16 +171,19 @@ Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb) {
   return t;
 }
 
-Tensor load_masks(const std::string& dir, int64_t frames, int size) {
+Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size) {
   if (!fs::is_directory(dir)) throw Error(dir + ": mask folder does not exist");
-  const std::vector<std::string> files = list_image_files(dir);
-  if (int64_t(files.size()) != frames)
+  const std::vector<std::string> files = role_files(dir, "_mask");
+  const int64_t frames = int64_t(clip.source_indices.size());
+  const bool per_source_frame = int64_t(files.size()) == clip.source_frames;
+  if (!per_source_frame && int64_t(files.size()) != frames)
     throw Error(dir + ": " + std::to_string(files.size()) + " mask images but " + std::to_string(frames) +
-                " sampled frames (give one mask per sampled frame)");
+                " sampled frames of " + std::to_string(clip.source_frames) +
+                " (give one mask per sampled frame or one per frame of the clip)");
   const int64_t plane = int64_t(size) * size;
   Tensor t({frames, 1, size, size});
   for (int64_t f = 0; f < frames; ++f) {
-    const std::string& path = files[size_t(f)];
+    const std::string& path = files[size_t(per_source_frame ? clip.source_indices[size_t(f)] : f)];
     cv::Mat g = cv::imread(path, cv::IMREAD_GRAYSCALE);
     if (g.empty()) throw Error(path + ": cannot decode mask image");
     cv::Mat r;

@@ -18,6 +18,9 @@ std::vector<int64_t> uniform_frame_indices(int64_t n, int64_t count);
 // Image files of a folder (png, jpg, jpeg, bmp, tif, tiff, webp; case-insensitive), sorted by file name.
 std::vector<std::string> list_image_files(const std::string& dir);
 
+// The files whose name (without extension) ends in `suffix`, e.g. "_rgb" for the data release's 00005_rgb.png.
+std::vector<std::string> files_with_stem_suffix(const std::vector<std::string>& files, const std::string& suffix);
+
 // Resizes to size x size ignoring the aspect ratio, antialiased: INTER_AREA along an axis that shrinks,
 // INTER_LINEAR along one that grows (each axis handled on its own when one shrinks and the other grows).
 cv::Mat squash_to_square(const cv::Mat& img, int size);
@@ -27,16 +30,19 @@ struct LoadedClip {
   std::vector<int64_t> source_indices;  // index of each sampled frame in the source
   int64_t source_frames = 0;            // frames in the video / images in the folder
 };
-// A video file (OpenCV VideoCapture) or a folder of images; samples `frames` frames uniformly over the clip.
+// A video file (OpenCV VideoCapture) or a folder of images; samples `frames` frames uniformly over the clip. A
+// folder holding *_rgb images (the data release's layout, beside *_mask and *_pressure images) uses only those.
 // Errors (one line): missing path, unreadable video or image, zero frames.
 LoadedClip load_clip(const std::string& path, int64_t frames, int size);
 
 // 8-bit RGB images -> [F, 3, S, S] float32 with x = 2 (v / 255) - 1.
 Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb);
 
-// A folder holding exactly `frames` mask images (one per sampled frame, by name order) -> [F, 1, S, S] in {0, 1}:
-// grey value > 127 is hand. Nearest-neighbour resize. Error if the count differs from `frames`.
-Tensor load_masks(const std::string& dir, int64_t frames, int size);
+// A folder of mask images -> [F, 1, S, S] in {0, 1} (grey value > 127 is hand; nearest-neighbour resize), F =
+// clip.source_indices.size(). It holds either one mask per sampled frame (in name order) or one per source frame
+// (the dataset layout: masks beside every frame), of which the sampled ones are taken. Any other count is an error.
+// A folder holding *_mask images uses only those.
+Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size);
 
 // The built-in demo clip, deterministic: a skin-coloured hand-like blob closing its fingers around a coloured box
 // over a plain background. `frames` RGB images of size x size.

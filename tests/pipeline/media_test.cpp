@@ -72,13 +72,21 @@ TEST(Media, LoadsFolderSortedSampledAndScaled) {
   EXPECT_FLOAT_EQ(t.data()[2 * 3 * plane + 2 * plane + 5], -1.0f);                     // B = 0
 }
 
+// A clip of `source` frames of which `frames` are sampled uniformly (no pixels: only the indices matter to masks).
+LoadedClip sampled(int64_t frames, int64_t source) {
+  LoadedClip c;
+  c.source_frames = source;
+  c.source_indices = uniform_frame_indices(source, frames);
+  return c;
+}
+
 TEST(Media, LoadErrors) {
   TempDir d;
   EXPECT_THROW(load_clip(d / "missing.mp4", 4, 64), Error);
   EXPECT_THROW(load_clip(d.path.string(), 4, 64), Error);  // folder without images
   std::ofstream(d / "fake.mp4") << "not a video";
   EXPECT_THROW(load_clip(d / "fake.mp4", 4, 64), Error);
-  EXPECT_THROW(load_masks(d / "no_masks", 2, 64), Error);
+  EXPECT_THROW(load_masks(d / "no_masks", sampled(2, 2), 64), Error);
 }
 
 TEST(Media, MasksBinarisedAndCounted) {
@@ -89,17 +97,31 @@ TEST(Media, MasksBinarisedAndCounted) {
     m(cv::Rect(16, 0, 16, 32)).setTo(i == 0 ? 127 : 128);  // > 127 is hand
     ASSERT_TRUE(cv::imwrite(d / ("m" + std::to_string(i) + ".png"), m));
   }
-  const Tensor m = load_masks(d.path.string(), 3, 64);
+  const Tensor m = load_masks(d.path.string(), sampled(3, 10), 64);
   ASSERT_EQ(m.shape().str(), Shape({3, 1, 64, 64}).str());
   EXPECT_EQ(m.data()[10], 1.0f);
   EXPECT_EQ(m.data()[40], 0.0f);             // frame 0, right half: 127
   EXPECT_EQ(m.data()[64 * 64 + 40], 1.0f);  // frame 1, right half: 128
   try {
-    load_masks(d.path.string(), 4, 64);
+    load_masks(d.path.string(), sampled(4, 10), 64);
     FAIL() << "mask count mismatch accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("3 mask images but 4 sampled frames"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("3 mask images but 4 sampled frames of 10"), std::string::npos) << e.what();
   }
+}
+
+// The dataset layout: a mask beside every frame of the clip; the masks of the sampled frames are taken.
+TEST(Media, MasksOfEverySourceFrameAreSampled) {
+  TempDir d;
+  for (int i = 0; i < 5; ++i) {
+    cv::Mat m(8, 8, CV_8UC1, cv::Scalar(i % 2 == 0 ? 255 : 0));  // frames 0, 2, 4 all hand; 1, 3 none
+    ASSERT_TRUE(cv::imwrite(d / ("m" + std::to_string(i) + ".png"), m));
+  }
+  const Tensor m = load_masks(d.path.string(), sampled(3, 5), 8);  // source indices 0, 2, 4
+  ASSERT_EQ(m.shape().str(), Shape({3, 1, 8, 8}).str());
+  for (int64_t i = 0; i < m.numel(); ++i) ASSERT_EQ(m.data()[i], 1.0f) << i;
+  const Tensor two = load_masks(d.path.string(), sampled(2, 5), 8);  // source indices 0, 4
+  for (int64_t i = 0; i < two.numel(); ++i) ASSERT_EQ(two.data()[i], 1.0f) << i;
 }
 
 TEST(Media, VideoRoundTrip) {
