@@ -14,6 +14,8 @@ int cmd_evaluate(const Args& a);
 int cmd_tokenize(const Args& a);
 int cmd_predict(const Args& a);
 int cmd_counterfactual(const Args& a);
+int cmd_batch(const Args& a);
+int cmd_manifest(const Args& a);
 
 // bench targets
 int bench_gemm(const Args& a);

@@ -4,8 +4,11 @@
 #include <cstdio>
 #include <string>
 
-#include "core/atomic_file.h"
+#include <filesystem>
+
+#include "batch/split_evaluation.h"
 #include "cli/commands.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/safetensors.h"
 #include "pressure/evaluation.h"
@@ -26,9 +29,40 @@ void print_row(const std::string& name, const PressureMetrics& m) {
               cell(m.volumetric_iou_pct, 2).c_str(), cell(m.mae_newton, 3).c_str(), cell(m.cop_error_grid, 3).c_str());
 }
 
+// --manifest: a batch run's folder against the manifest's ground truth, per split.
+int evaluate_manifest_run(const Args& a) {
+  const Manifest m = read_manifest(a.require("manifest"));
+  const std::string pred = a.require("pred");
+  std::string run = a.get("name", "");
+  if (run.empty()) run = std::filesystem::path(pred).lexically_normal().filename().string();
+  if (run.empty() || run == ".") run = "egopd";
+  const std::string template_path = a.get("template", "");
+  const std::string json_path = a.get("json", ""), md_path = a.get("markdown", ""), csv_path = a.get("csv", "");
+  EvaluationOptions opt;
+  opt.stabilize_predictions = a.flag("stabilize-predictions");
+  a.finish();
+  const HandTemplate t = HandTemplate::load(template_path.empty() ? default_template_path() : template_path);
+  const ManifestEvaluation e = evaluate_manifest(m, pred, run, t, opt);
+  const std::string md = manifest_evaluation_markdown(e, t);
+  std::printf("%s", md.c_str());
+  if (!json_path.empty()) write_file_atomic(json_path, manifest_evaluation_json(e, t, opt).dump(2) + "\n");
+  if (!md_path.empty()) write_file_atomic(md_path, md);
+  if (!csv_path.empty()) write_file_atomic(csv_path, manifest_evaluation_csv(e));
+  if (!e.complete()) {
+    const SplitResult& all = e.splits.back();
+    std::fprintf(stderr, "egopd: evaluate: %zu of %lld clips missing and %zu failed (%s): the tables cover %lld clips\n",
+                 all.missing.size(), static_cast<long long>(all.clips), all.failed.size(),
+                 (all.missing.empty() ? all.failed[0] : all.missing[0]).c_str(),
+                 static_cast<long long>(all.evaluated));
+    return 1;
+  }
+  return 0;
+}
+
 }  // namespace
 
 int cmd_evaluate(const Args& a) {
+  if (a.has("manifest")) return evaluate_manifest_run(a);
   const std::string pred = a.require("pred");
   const std::string gt = a.require("gt");
   const std::string template_path = a.get("template", "");

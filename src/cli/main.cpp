@@ -50,10 +50,15 @@ const Command kCommands[] = {
      "  (safetensors, written atomically). --check also compares with the case's expected.safetensors."},
     {"evaluate", cmd_evaluate,
      "egopd evaluate --pred taxels.csv|DIR --gt GT.csv|DIR [--template FILE] [--json FILE] [--stabilize-predictions]\n"
+     "       egopd evaluate --manifest MANIFEST.jsonl --pred DIR [--name RUN] [--json F] [--markdown F] [--csv F]\n"
      "  Temporal accuracy, contact IoU, volumetric IoU, MAE (N) and part-wise CoP error of predicted taxels (CSV\n"
      "  frame,p0..p161 in N) against raw glove readings (stabilised and normalised here). Directories: clips are\n"
      "  matched by file name and the sums pooled over all frames of the split. --json writes the results\n"
-     "  (atomically). Default template: the shipped synthetic one (EGOPD_TEMPLATE overrides)."},
+     "  (atomically). Default template: the shipped synthetic one (EGOPD_TEMPLATE overrides).\n"
+     "  --manifest: a batch run's outputs (DIR/ID/taxels.csv) against each clip's gt, pooled per split in the\n"
+     "  paper's main-table layout (one row, five columns per split, then 'all'); --csv per-clip rows. Clips that are\n"
+     "  missing or failed are listed by name and the exit status is 1 (the tables are still written). Ground-truth\n"
+     "  heatmaps are read out to taxels with the predictions' template and operator, then taken as glove readings."},
     {"tokenize", cmd_tokenize,
      "egopd tokenize TEXT... [--tokenizer DIR] [--pad-id N] [--json]\n"
      "  Prints the 77 CLIP BPE ids of each TEXT (BOS, content, EOS, padding). DIR holds vocab.json + merges.txt\n"
@@ -81,6 +86,25 @@ const Command kCommands[] = {
      "  subj_weight, bodyfat; base values from --meta; a bare number gets the field's unit, `omit` drops the field).\n"
      "  Encodes the clip once and denoises once per variant. Writes DIR/<field>_<value>/ (predict's outputs),\n"
      "  comparison.png (rows = variants, 4 frames) and forces.csv (mean / peak total force in N per variant)."},
+    {"manifest", cmd_manifest,
+     "egopd manifest --root DIR [--list motion_list.txt] [--attributes FILE] --out MANIFEST.jsonl\n"
+     "  One JSON line per clip of a dataset tree: sequence folders (from --list, else ROOT/motion_list.txt, else\n"
+     "  every sub-folder) named <subject>-<object>-<take> holding NNNNN_rgb.png frames, optional NNNNN_mask.png\n"
+     "  hint masks and NNNNN_pressure.png ground-truth heatmaps (or one video file / a taxels.csv). --attributes: a\n"
+     "  JSON file of prompt fields per object and per subject and held-out splits (see README, \"Running a\n"
+     "  benchmark split\"). Fields of a line: id, frames, masks, meta | prompt, gt, split; paths relative to the\n"
+     "  manifest's folder. Manifests may also be written by hand."},
+    {"batch", cmd_batch,
+     "egopd batch --manifest MANIFEST.jsonl --out DIR [--shard I/N] [predict options except --video --masks\n"
+     "            --meta --prompt]\n"
+     "  Every clip of the manifest with the model loaded once; outputs of clip ID in DIR/ID/ (as predict writes\n"
+     "  them), each folder appearing whole. A clip whose folder exists is skipped, so running the same command again\n"
+     "  resumes. A clip that fails is recorded in DIR/ID.failed (its error) and the batch goes on; exit status 1 if\n"
+     "  any failed (a re-run retries them). --shard I/N runs clips k with k % N == I; without it, a Slurm array task\n"
+     "  takes its shard from SLURM_ARRAY_TASK_ID / SLURM_ARRAY_TASK_COUNT (arrays must be 0-based), else every clip.\n"
+     "  Threads: --threads, else EGOPD_THREADS, else SLURM_CPUS_PER_TASK, else the physical cores.\n"
+     "  SIGINT/SIGTERM: the current clip is abandoned with nothing half-written; exit 130/143; re-run to resume.\n"
+     "  Every clip uses the same --seed. Progress: [k/n ID] lines per clip and step, clips/hour at the end."},
     {"bench", cmd_bench,
      "egopd bench TARGET [options] [--threads T] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"

@@ -103,8 +103,9 @@ std::string model_scheduler_name(const std::string& model_dir) {
   return load_sampler(cfg.string())->name();
 }
 
-// Checks of the options that need no model and no clip, before any work.
-void check_options(const PredictOptions& o) {
+}  // namespace
+
+void check_predict_options(const PredictOptions& o) {
   if (o.out_dir.empty()) throw Error("--out is required");
   if (o.size < 64 || o.size % 64) throw Error("--size must be a positive multiple of 64 (got " + std::to_string(o.size) + ")");
   if (o.prompt && !o.meta_path.empty()) throw Error("give either --prompt or --meta, not both");
@@ -119,6 +120,8 @@ void check_options(const PredictOptions& o) {
   require_exists(o.meta_path, "metadata file");
   require_exists(o.template_path, "hand template");
 }
+
+namespace {
 
 // Settings, frames and masks of one clip; the built-in sample clip is saved into work_dir.
 Prepared prepare_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
@@ -159,7 +162,7 @@ Prepared prepare_clip(const PredictModel& model, const PredictOptions& o, const 
         static_cast<long long>(p.clip.source_frames), static_cast<long long>(s.frames));
   }
   p.frames = frames_to_tensor(p.clip.rgb);
-  if (!src.masks_dir.empty()) p.masks = load_masks(src.masks_dir, s.frames, S);
+  if (!src.masks_dir.empty()) p.masks = load_masks(src.masks_dir, p.clip, S);
   return p;
 }
 
@@ -375,7 +378,7 @@ std::string default_model_dir(const std::string& out_dir) {
 
 PredictModel::PredictModel(const PredictOptions& o) {
   const auto start = Clock::now();
-  check_options(o);
+  check_predict_options(o);
   builtin_ = o.model_dir.empty();
   model_dir_ = builtin_ ? default_model_dir(o.out_dir) : o.model_dir;
   if (builtin_) {
@@ -443,7 +446,7 @@ ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, con
 
 int run_predict(const PredictOptions& o) {
   install_interrupt_handlers();
-  check_options(o);
+  check_predict_options(o);
   const ClipSource src = clip_source(o);
   const PredictModel model(o);
   const ClipOutcome c = predict_clip(model, o, src, o.out_dir);
@@ -606,7 +609,7 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
   if (o.prompt) throw Error("counterfactual varies prompt fields: give --meta (or nothing), not --prompt");
   if (vary.values.empty()) throw Error("--vary needs at least one value");
   install_interrupt_handlers();
-  check_options(o);
+  check_predict_options(o);
   const ClipSource src = clip_source(o);
   const PromptFields base = src.meta ? *src.meta : PromptFields{};
   const std::vector<Variant> variants = make_variants(base, vary);

@@ -97,6 +97,9 @@ struct ClipOutcome {
 ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& clip,
                          const std::string& out_dir, const std::string& prefix = "");
 
+// Checks of the options that need no model and no clip, before any work (one-line errors naming the flag).
+void check_predict_options(const PredictOptions& o);
+
 // Run one prediction and write its outputs into o.out_dir. Returns 0.
 int run_predict(const PredictOptions& o);
 // Same clip and seed under every prompt variant of `vary` (one encode pass, one denoising run per variant);

@@ -64,9 +64,11 @@ std::vector<std::string> csv_names(const fs::path& dir) {
   return names;
 }
 
+}  // namespace
+
 nlohmann::ordered_json number_or_null(double v) { return std::isfinite(v) ? nlohmann::ordered_json(v) : nullptr; }
 
-void put_metrics(nlohmann::ordered_json& j, const PressureMetrics& m) {
+void put_metrics_json(nlohmann::ordered_json& j, const PressureMetrics& m) {
   j["temporal_accuracy_pct"] = number_or_null(m.temporal_accuracy_pct);
   j["contact_iou_pct"] = number_or_null(m.contact_iou_pct);
   j["volumetric_iou_pct"] = number_or_null(m.volumetric_iou_pct);
@@ -74,8 +76,6 @@ void put_metrics(nlohmann::ordered_json& j, const PressureMetrics& m) {
   j["cop_error_grid"] = number_or_null(m.cop_error_grid);
   j["frames"] = m.frames;
 }
-
-}  // namespace
 
 TaxelSequence ground_truth_from_newtons(const HandTemplate& t, const TaxelSequence& raw) {
   TaxelSequence s = raw;
@@ -136,7 +136,7 @@ EvaluationReport evaluate_taxel_files(const std::string& pred, const std::string
 
 nlohmann::ordered_json evaluation_json(const EvaluationReport& r, const HandTemplate& t, const EvaluationOptions& opt) {
   nlohmann::ordered_json j;
-  put_metrics(j, r.pooled);
+  put_metrics_json(j, r.pooled);
   nlohmann::ordered_json parts = nlohmann::ordered_json::object();
   for (int p = 0; p < kNumCopParts; ++p)
     parts[region_name(Region(p))] = {{"error_grid", number_or_null(r.pooled.cop_error_by_part[p])},
@@ -146,7 +146,7 @@ nlohmann::ordered_json evaluation_json(const EvaluationReport& r, const HandTemp
   for (const auto& c : r.clips) {
     nlohmann::ordered_json cj;
     cj["name"] = c.name;
-    put_metrics(cj, c.metrics);
+    put_metrics_json(cj, c.metrics);
     j["clips"].push_back(cj);
   }
   j["template"] = {{"name", t.name()}, {"file", t.source()}, {"synthetic", t.synthetic()}};

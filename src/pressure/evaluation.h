@@ -41,6 +41,11 @@ struct EvaluationReport {
 EvaluationReport evaluate_taxel_files(const std::string& pred, const std::string& gt, const HandTemplate& t,
                                       const EvaluationOptions& opt = {});
 
+// A metric value for JSON: null when undefined (NaN).
+nlohmann::ordered_json number_or_null(double v);
+// temporal_accuracy_pct, contact_iou_pct, volumetric_iou_pct, mae_newton, cop_error_grid, frames into `j`.
+void put_metrics_json(nlohmann::ordered_json& j, const PressureMetrics& m);
+
 // The JSON written by `egopd evaluate --json`: temporal_accuracy_pct, contact_iou_pct, volumetric_iou_pct,
 // mae_newton, cop_error_grid, frames (undefined metrics are null), then per-part CoP, per-clip results and the
 // template (with its synthetic flag).

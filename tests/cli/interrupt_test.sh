@@ -9,7 +9,7 @@ work=$2
 rm -rf "$work"
 mkdir -p "$work"
 export XDG_CACHE_HOME="$work/cache"
-fail() { echo "FAIL: $*"; exit 1; }
+source "$(dirname "$0")/common.sh"
 
 "$egopd" predict --out "$work/out" --frames 4 --size 64 --threads 1 2>"$work/first.log" || fail "first run: $(tail -1 "$work/first.log")"
 before=$(sha256sum "$work/out/taxels.csv")
@@ -19,12 +19,7 @@ before=$(sha256sum "$work/out/taxels.csv")
 "$egopd" predict --out "$work/out" --frames 8 --size 128 --sampler euler --steps 25 --seed 9 --threads 1 \
   2>"$work/term.log" &
 pid=$!
-for _ in $(seq 1 600); do
-  grep -q "step 1/25" "$work/term.log" 2>/dev/null && break
-  kill -0 $pid 2>/dev/null || break
-  sleep 0.05
-done
-grep -q "step 1/25" "$work/term.log" || fail "the run never reached step 1: $(tail -2 "$work/term.log")"
+wait_for_log "$work/term.log" "step 1/25" $pid
 kill -TERM $pid
 wait $pid
 code=$?
