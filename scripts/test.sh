@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The test command: install what is missing, build (Release), run every unit and golden test; then build the tests
-# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too.
+# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too; finally a Slurm job
+# array on a one-node local cluster (tests/slurm/slurm_test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -16,3 +17,12 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON
 cmake --build build-asan -j"$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
+
+echo "== Slurm: a job array on a one-node local cluster =="
+if [ "$(id -u)" -eq 0 ]; then
+  tests/slurm/slurm_test.sh build/bin/egopd build/slurm_test_work
+elif [ "${CI:-}" = "true" ]; then
+  sudo -E tests/slurm/slurm_test.sh build/bin/egopd build/slurm_test_work
+else
+  echo "skipped: the local Slurm cluster needs root (run: sudo tests/slurm/slurm_test.sh)"
+fi

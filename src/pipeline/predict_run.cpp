@@ -384,7 +384,11 @@ PredictModel::PredictModel(const PredictOptions& o) {
   if (builtin_) {
     if (!fs::exists(fs::path(model_dir_) / "model_index.json")) {
       say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
-      write_synthetic_model(model_dir_, "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
+      // Built beside its place and moved in whole: parallel runs (batch array tasks) never see half a model; the
+      // model is deterministic, so when another run got there first its copy is as good as ours.
+      AtomicDir tmp(model_dir_);
+      write_synthetic_model(tmp.path(), "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
+      if (!fs::exists(fs::path(model_dir_) / "model_index.json")) tmp.commit();
     }
     say("model: built-in SYNTHETIC model %s (random weights: the pressures are NOT meaningful)", model_dir_.c_str());
   }
