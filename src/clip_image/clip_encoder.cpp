@@ -22,11 +22,11 @@ Config clip_tower_config(const Config& file, const std::string& nested_key) {
 ClipEncoderConfig read_clip_encoder_config(const Config& c, bool vision) {
   // transformers' CLIPVisionConfig / CLIPTextConfig defaults, used only for keys a config leaves out.
   ClipEncoderConfig e;
-  e.hidden = c.get_int("hidden_size", vision ? 768 : 512);
-  e.intermediate = c.get_int("intermediate_size", vision ? 3072 : 2048);
-  e.heads = c.get_int("num_attention_heads", vision ? 12 : 8);
-  e.layers = c.get_int("num_hidden_layers", 12);
-  e.eps = float(c.get_double("layer_norm_eps", 1e-5));
+  e.hidden = c.get_int("hidden_size", vision ? 768 : 512, kChannelRange);
+  e.intermediate = c.get_int("intermediate_size", vision ? 3072 : 2048, kChannelRange);
+  e.heads = c.get_int("num_attention_heads", vision ? 12 : 8, kCountRange);
+  e.layers = c.get_int("num_hidden_layers", 12, IntRange{0, 1024});
+  e.eps = float(c.get_double("layer_norm_eps", 1e-5, kEpsRange));
   e.act = clip_activation(c, "quick_gelu");
   if (e.hidden <= 0 || e.intermediate <= 0 || e.layers < 0) c.fail("hidden_size", "sizes must be positive");
   if (e.heads <= 0 || e.hidden % e.heads != 0)

@@ -13,9 +13,9 @@ ClipVisionConfig ClipVisionConfig::from_config(const Config& file) {
   const Config c = clip_tower_config(file, "vision_config");
   ClipVisionConfig v;
   v.encoder = read_clip_encoder_config(c, /*vision=*/true);
-  v.image_size = c.get_int("image_size", 224);
-  v.patch_size = c.get_int("patch_size", 32);
-  v.num_channels = c.get_int("num_channels", 3);
+  v.image_size = c.get_int("image_size", 224, IntRange{1, 4096});
+  v.patch_size = c.get_int("patch_size", 32, IntRange{1, 4096});
+  v.num_channels = c.get_int("num_channels", 3, kChannelRange);
   // A CLIPConfig keeps projection_dim at the top level.
   v.projection_dim = c.get_int("projection_dim", file.get_int("projection_dim", 512));
   if (v.patch_size <= 0 || v.image_size % v.patch_size != 0)

@@ -1,6 +1,8 @@
 #include "core/config.h"
 
+#include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include "core/error.h"
 
@@ -40,7 +42,9 @@ int64_t Config::get_int(const std::string& key, int64_t fallback) const { return
 double Config::get_double(const std::string& key) const {
   const auto& v = at(key);
   if (!v.is_number()) fail(key, "expected a number, got " + v.dump());
-  return v.get<double>();
+  const double x = v.get<double>();
+  if (!std::isfinite(x)) fail(key, "not a finite number");
+  return x;
 }
 
 double Config::get_double(const std::string& key, double fallback) const {
@@ -102,6 +106,56 @@ std::vector<int64_t> Config::get_int_per_block(const std::string& key, size_t n)
   if (v.is_number_integer()) return std::vector<int64_t>(n, v.get<int64_t>());
   std::vector<int64_t> out = get_int_list(key);
   if (out.size() != n) fail(key, "expected " + std::to_string(n) + " values (one per block), got " + std::to_string(out.size()));
+  return out;
+}
+
+namespace {
+std::string num(double v) {
+  std::ostringstream o;
+  o << v;
+  return o.str();
+}
+}  // namespace
+
+int64_t Config::get_int(const std::string& key, IntRange r) const {
+  const int64_t v = get_int(key);
+  if (v < r.lo || v > r.hi)
+    fail(key, "must be between " + std::to_string(r.lo) + " and " + std::to_string(r.hi) + ", got " + std::to_string(v));
+  return v;
+}
+
+int64_t Config::get_int(const std::string& key, int64_t fallback, IntRange r) const {
+  return has(key) ? get_int(key, r) : fallback;
+}
+
+double Config::get_double(const std::string& key, RealRange r) const {
+  const double v = get_double(key);
+  if (v > r.hi || (r.lo_open ? v <= r.lo : v < r.lo))
+    fail(key, std::string("must be ") + (r.lo_open ? "> " : ">= ") + num(r.lo) + " and <= " + num(r.hi) + ", got " +
+                  num(v));
+  return v;
+}
+
+double Config::get_double(const std::string& key, double fallback, RealRange r) const {
+  return has(key) ? get_double(key, r) : fallback;
+}
+
+std::vector<int64_t> Config::get_int_list(const std::string& key, IntRange r) const {
+  std::vector<int64_t> out = get_int_list(key);
+  if (out.empty()) fail(key, "must not be empty");
+  for (int64_t v : out)
+    if (v < r.lo || v > r.hi)
+      fail(key, "values must be between " + std::to_string(r.lo) + " and " + std::to_string(r.hi) + ", got " +
+                    std::to_string(v));
+  return out;
+}
+
+std::vector<int64_t> Config::get_int_per_block(const std::string& key, size_t n, IntRange r) const {
+  std::vector<int64_t> out = get_int_per_block(key, n);
+  for (int64_t v : out)
+    if (v < r.lo || v > r.hi)
+      fail(key, "values must be between " + std::to_string(r.lo) + " and " + std::to_string(r.hi) + ", got " +
+                    std::to_string(v));
   return out;
 }
 

@@ -11,9 +11,9 @@ MaskEncoderConfig MaskEncoderConfig::from(const Config& c) {
   if (cls != "MaskEncoder" && cls != "ControlNetConditioningEmbedding")
     c.fail("_class_name", "expected MaskEncoder or ControlNetConditioningEmbedding, got " + cls);
   MaskEncoderConfig m;
-  m.conditioning_channels = c.get_int("conditioning_channels", 1);
-  if (c.has("block_out_channels")) m.block_out_channels = c.get_int_list("block_out_channels");
-  m.conditioning_embedding_channels = c.get_int("conditioning_embedding_channels", 8);
+  m.conditioning_channels = c.get_int("conditioning_channels", 1, kChannelRange);
+  if (c.has("block_out_channels")) m.block_out_channels = c.get_int_list("block_out_channels", kChannelRange);
+  m.conditioning_embedding_channels = c.get_int("conditioning_embedding_channels", 8, kChannelRange);
   if (m.block_out_channels.empty()) c.fail("block_out_channels", "must not be empty");
   return m;
 }

@@ -6,6 +6,7 @@
 
 #include "clip_image/svd_preprocess.h"
 #include "core/error.h"
+#include "core/finite_check.h"
 #include "core/rng.h"
 #include "scheduler/animatelcm.h"
 #include "scheduler/euler.h"
@@ -21,14 +22,14 @@ static ModelDefaults load_defaults(const fs::path& dir) {
   Config c = Config::load(index.string());
   if (!c.has("egopd_defaults")) return d;
   Config e = c.sub("egopd_defaults");
-  d.steps = int(e.get_int("num_inference_steps", 0));
-  d.frames = e.get_int("num_frames", d.frames);
-  d.resolution = e.get_int("resolution", d.resolution);
-  d.fps = float(e.get_double("fps", d.fps));
-  d.motion_bucket_id = float(e.get_double("motion_bucket_id", d.motion_bucket_id));
-  d.noise_aug_strength = float(e.get_double("noise_aug_strength", d.noise_aug_strength));
-  d.min_guidance = float(e.get_double("min_guidance_scale", d.min_guidance));
-  d.max_guidance = float(e.get_double("max_guidance_scale", d.max_guidance));
+  d.steps = int(e.get_int("num_inference_steps", 0, IntRange{0, 1000}));
+  d.frames = e.get_int("num_frames", d.frames, IntRange{1, 1024});
+  d.resolution = e.get_int("resolution", d.resolution, IntRange{64, 4096});
+  d.fps = float(e.get_double("fps", d.fps, RealRange{0, 1000}));
+  d.motion_bucket_id = float(e.get_double("motion_bucket_id", d.motion_bucket_id, RealRange{0, 10000}));
+  d.noise_aug_strength = float(e.get_double("noise_aug_strength", d.noise_aug_strength, RealRange{0, 10}));
+  d.min_guidance = float(e.get_double("min_guidance_scale", d.min_guidance, kGuidanceRange));
+  d.max_guidance = float(e.get_double("max_guidance_scale", d.max_guidance, kGuidanceRange));
   d.prompt_template = e.get_string("prompt_template", "");
   return d;
 }
@@ -153,6 +154,7 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
   {
     ScopedStage st(times, "vae_encode");
     Tensor r = vae_->encode_mean(frames);  // [F, 4, h, w], mode(), unscaled
+    require_finite(r, "the clip's latents (VAE encoder output)");
     sh.rgb_latents = r.reshaped({1, F, r.dim(1), r.dim(2), r.dim(3)});
   }
   drop();
@@ -163,6 +165,7 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
     }
     ScopedStage st(times, "mask_encoder");
     sh.mask_features = masks_->forward(*masks);
+    require_finite(sh.mask_features, "the mask features (mask encoder output)");
   }
   drop();
   {
@@ -173,6 +176,7 @@ EgoPressureDiffPipeline::Shared EgoPressureDiffPipeline::encode(const Tensor& fr
     ScopedStage st(times, "clip_image");
     Tensor pix = svd_clip_preprocess(renderer_->prototype_image(), clip_norm_, image_encoder_->config().image_size);
     Tensor emb = image_encoder_->forward(pix).image_embeds;
+    require_finite(emb, "the prototype embedding (CLIP image encoder output)");
     sh.prototype = emb.reshaped({1, 1, emb.dim(1)});
   }
   // The image tower is done for this run: let its mapped pages go (they are re-read if it runs again).
@@ -222,6 +226,7 @@ Tensor EgoPressureDiffPipeline::encode_text(const std::optional<std::string>& pr
     if (truncated) *truncated = t.truncated;
     IdTensor ids{Shape{1, int64_t(t.ids.size())}, t.ids};
     out = text_->forward(ids).last_hidden_state;  // [1, 77, T]
+    require_finite(out, "the text embedding (CLIP text encoder output)");
   }
   if (!low_mem_) text_->weights()->release("");
   drop();
@@ -282,8 +287,11 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
         Tensor vu = Tensor::view({1, F, lc, h, w}, v.data()), vc = Tensor::view({1, F, lc, h, w}, v.data() + F * frame);
         v = cfg_combine(vu, vc, g);
       }
+      const std::string after = "the latents after step " + std::to_string(i + 1) + " of " + std::to_string(steps);
+      require_finite(v, after + " (U-Net output)");
       const Tensor* noise = sampler.step_needs_noise(i) ? &sh.step_noises[size_t(i)] : nullptr;
       x = sampler.step(v, i, x, noise);
+      require_finite(x, after + " (" + sampler.name() + " sampler update)");
     }
     if (on_step) on_step(i + 1, steps, seconds_since(t0));
   }
@@ -299,6 +307,7 @@ EgoPressureDiffPipeline::Result EgoPressureDiffPipeline::run(const Shared& sh, c
   {
     ScopedStage st(times, "vae_decode");
     res.decoded = vae_->decode_latents(x.reshaped({F, lc, h, w}), F, s.decode_chunk);
+    require_finite(res.decoded, "the decoded heatmaps (VAE decoder output)");
   }
   drop();
   {

@@ -45,7 +45,9 @@ std::array<uint8_t, 3> pressure_colour(double t) {
 std::vector<uint8_t> paint_heatmap(const std::vector<double>& h, int size, const std::vector<Point2>& outline,
                                    const HeatmapPaintOptions& opt) {
   if (h.size() != size_t(size) * size) throw Error("paint_heatmap: heatmap is not " + std::to_string(size) + "x" + std::to_string(size));
-  if (!(opt.vmax > 0)) throw Error("paint_heatmap: vmax must be > 0");
+  if (!(opt.vmax > 0) || !std::isfinite(opt.vmax)) throw Error("paint_heatmap: vmax must be finite and > 0");
+  for (size_t k = 0; k < h.size(); ++k)  // NaN must never be drawn as "no pressure"
+    if (!std::isfinite(h[k])) throw Error("paint_heatmap: non-finite heatmap value at pixel " + std::to_string(k));
   std::vector<uint8_t> img(h.size() * 3);
   for (int i = 0; i < size; ++i)
     for (int j = 0; j < size; ++j) {

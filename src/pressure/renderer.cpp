@@ -143,6 +143,9 @@ std::vector<double> PressureRenderer::heatmap_from_image(const float* chw) const
   std::vector<double> h(n);
   for (size_t k = 0; k < n; ++k) {
     const double mean = (double(chw[k]) + double(chw[n + k]) + double(chw[2 * n + k])) / 3.0;
+    // clamp and max would turn NaN into a silent 0 N: a broken model must fail instead.
+    if (!std::isfinite(mean))
+      throw Error("non-finite value in a generated heatmap (pixel " + std::to_string(k) + "); the model is broken");
     h[k] = std::clamp((mean + 1.0) / 2.0, 0.0, 1.0);
   }
   return h;

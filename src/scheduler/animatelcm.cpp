@@ -8,12 +8,12 @@
 namespace egopd {
 
 AnimateLcmSampler::AnimateLcmSampler(const Config& cfg) {
-  p_.num_train_timesteps = int(cfg.get_int("num_train_timesteps", 40));
-  p_.sigma_min = cfg.get_double("sigma_min");
-  p_.sigma_max = cfg.get_double("sigma_max");
-  p_.sigma_data = cfg.get_double("sigma_data");
-  p_.s_noise = cfg.get_double("s_noise", 1.0);
-  p_.rho = cfg.get_double("rho", 7.0);
+  p_.num_train_timesteps = int(cfg.get_int("num_train_timesteps", 40, IntRange{1, 1000000}));
+  p_.sigma_min = cfg.get_double("sigma_min", kSigmaRange);
+  p_.sigma_max = cfg.get_double("sigma_max", kSigmaRange);
+  p_.sigma_data = cfg.get_double("sigma_data", kSigmaRange);
+  p_.s_noise = cfg.get_double("s_noise", 1.0, RealRange{0, 100});
+  p_.rho = cfg.get_double("rho", 7.0, RealRange{0, 1000, true});
   if (!cfg.has("clip_denoised")) cfg.fail("clip_denoised", "missing");
   p_.clip_denoised = cfg.get_bool("clip_denoised", false);
   if (p_.num_train_timesteps < 2) cfg.fail("num_train_timesteps", "must be >= 2");

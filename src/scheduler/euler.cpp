@@ -26,8 +26,8 @@ EulerSampler::EulerSampler(const Config& cfg) {
   for (const char* key : {"use_exponential_sigmas", "use_beta_sigmas"})
     if (cfg.get_bool(key, false)) cfg.fail(key, "not implemented (only Karras sigmas)");
   // Without explicit bounds diffusers would derive them from the beta schedule, which is not implemented.
-  sigma_min_ = cfg.get_double("sigma_min");
-  sigma_max_ = cfg.get_double("sigma_max");
+  sigma_min_ = cfg.get_double("sigma_min", kSigmaRange);
+  sigma_max_ = cfg.get_double("sigma_max", kSigmaRange);
   if (!(sigma_min_ > 0)) cfg.fail("sigma_min", "must be > 0");
   if (!(sigma_max_ > sigma_min_)) cfg.fail("sigma_max", "must be > sigma_min");
 }

@@ -8,9 +8,9 @@ namespace egopd {
 
 UNetConfig UNetConfig::from(const Config& c) {
   UNetConfig u;
-  u.in_channels = c.get_int("in_channels", 8);
-  u.out_channels = c.get_int("out_channels", 4);
-  u.block_out_channels = c.get_int_list("block_out_channels");
+  u.in_channels = c.get_int("in_channels", 8, kChannelRange);
+  u.out_channels = c.get_int("out_channels", 4, kChannelRange);
+  u.block_out_channels = c.get_int_list("block_out_channels", kChannelRange);
   const size_t n = u.block_out_channels.size();
   if (n == 0) c.fail("block_out_channels", "empty");
   for (const auto& t : c.get_string_list("down_block_types")) {
@@ -25,12 +25,12 @@ UNetConfig UNetConfig::from(const Config& c) {
   }
   if (u.down_types.size() != n) c.fail("down_block_types", "needs one entry per block_out_channels entry");
   if (u.up_types.size() != n) c.fail("up_block_types", "needs one entry per block_out_channels entry");
-  u.layers_per_block = c.get_int_per_block("layers_per_block", n);
-  u.transformer_layers = c.get_int_per_block("transformer_layers_per_block", n);
-  u.heads = c.get_int_per_block("num_attention_heads", n);
-  u.cross_attention_dim = c.get_int_per_block("cross_attention_dim", n);
-  u.addition_time_embed_dim = c.get_int("addition_time_embed_dim", 256);
-  u.projection_class_embeddings_input_dim = c.get_int("projection_class_embeddings_input_dim", 768);
+  u.layers_per_block = c.get_int_per_block("layers_per_block", n, kCountRange);
+  u.transformer_layers = c.get_int_per_block("transformer_layers_per_block", n, kCountRange);
+  u.heads = c.get_int_per_block("num_attention_heads", n, kCountRange);
+  u.cross_attention_dim = c.get_int_per_block("cross_attention_dim", n, kChannelRange);
+  u.addition_time_embed_dim = c.get_int("addition_time_embed_dim", 256, kChannelRange);
+  u.projection_class_embeddings_input_dim = c.get_int("projection_class_embeddings_input_dim", 768, kChannelRange);
   if (u.projection_class_embeddings_input_dim != 3 * u.addition_time_embed_dim)
     c.fail("projection_class_embeddings_input_dim", "must be 3 x addition_time_embed_dim (three added time ids)");
   for (size_t i = 0; i < n; ++i) {
@@ -44,7 +44,7 @@ UNetConfig UNetConfig::from(const Config& c) {
   if (c.has("pifr")) {
     Config p = c.sub("pifr");
     u.pifr_enabled = p.get_bool("enabled", true);
-    if (u.pifr_enabled) u.pifr_text_dim = p.get_int("text_dim");
+    if (u.pifr_enabled) u.pifr_text_dim = p.get_int("text_dim", kChannelRange);
   }
   return u;
 }

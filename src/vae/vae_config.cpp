@@ -9,12 +9,12 @@ VaeConfig VaeConfig::from(const Config& c) {
   const std::string cls = c.get_string("_class_name", "AutoencoderKLTemporalDecoder");
   if (cls != "AutoencoderKLTemporalDecoder")
     c.fail("_class_name", "'" + cls + "' is not AutoencoderKLTemporalDecoder");
-  v.in_channels = c.get_int("in_channels", 3);
-  v.out_channels = c.get_int("out_channels", 3);
-  v.latent_channels = c.get_int("latent_channels", 4);
-  v.layers_per_block = c.get_int("layers_per_block", 1);
-  v.block_out_channels = c.has("block_out_channels") ? c.get_int_list("block_out_channels") : std::vector<int64_t>{64};
-  v.scaling_factor = c.get_double("scaling_factor", 0.18215);
+  v.in_channels = c.get_int("in_channels", 3, kChannelRange);
+  v.out_channels = c.get_int("out_channels", 3, kChannelRange);
+  v.latent_channels = c.get_int("latent_channels", 4, kChannelRange);
+  v.layers_per_block = c.get_int("layers_per_block", 1, kCountRange);
+  v.block_out_channels = c.has("block_out_channels") ? c.get_int_list("block_out_channels", kChannelRange) : std::vector<int64_t>{64};
+  v.scaling_factor = c.get_double("scaling_factor", 0.18215, RealRange{0, 1e3, true});
   if (v.block_out_channels.empty()) c.fail("block_out_channels", "must list at least one block");
   for (int64_t ch : v.block_out_channels)
     if (ch <= 0 || ch % kGroups != 0) c.fail("block_out_channels", "every width must be a positive multiple of 32");
