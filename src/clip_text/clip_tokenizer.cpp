@@ -165,6 +165,8 @@ ClipTokenizer ClipTokenizer::load_dir(const std::string& dir) {
     if (!it->is_number_integer()) throw Error(vocab_path.string() + ": id of token " + it.key() + " is not an integer");
     vocab.emplace(it.key(), it->get<int64_t>());
   }
+  // An empty vocabulary would still "tokenize" (every piece unknown): a broken download must fail instead.
+  if (vocab.empty()) throw Error(vocab_path.string() + ": the vocabulary is empty");
 
   const fs::path merges_path = d / "merges.txt";
   std::ifstream in(merges_path);
@@ -180,6 +182,8 @@ ClipTokenizer ClipTokenizer::load_dir(const std::string& dir) {
       throw Error(merges_path.string() + ": line " + std::to_string(line_no) + " is not 'A B'");
     merges.emplace_back(line.substr(0, sp), line.substr(sp + 1));
   }
+  // Without merges BPE splits every word into characters: a different tokenizer, not a degraded one.
+  if (merges.empty()) throw Error(merges_path.string() + ": no merges (an empty or truncated merges.txt)");
   ClipTokenizer tok(std::move(vocab), merges);
 
   // pad_token / model_max_length from tokenizer_config.json, else special_tokens_map.json.

@@ -8,7 +8,9 @@
 #include <memory>
 #include <set>
 
+#include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/finite_check.h"
 
 namespace egopd {
 namespace fs = std::filesystem;
@@ -23,13 +25,18 @@ DType float_dtype(TargetDType t) {
   return t == TargetDType::F16 ? DType::F16 : t == TargetDType::BF16 ? DType::BF16 : DType::F32;
 }
 
-void store_floats(const float* v, size_t n, DType dt, uint8_t* dst) {
+// Converts finite values (see stored_values); a value too large for the target type is an error naming the tensor,
+// never an Inf in the converted model.
+void store_floats(const float* v, size_t n, DType dt, uint8_t* dst, const std::string& name) {
   if (dt == DType::F32) {
     std::memcpy(dst, v, n * 4);
     return;
   }
   for (size_t i = 0; i < n; ++i) {
     const uint16_t h = dt == DType::F16 ? float_to_half(v[i]) : float_to_bf16(v[i]);
+    if ((h & 0x7fffu) == (dt == DType::F16 ? 0x7c00u : 0x7f80u))  // ±Inf of the target from a finite value
+      throw Error(name + ": value " + std::to_string(v[i]) + " at index " + std::to_string(i) + " overflows " +
+                  dtype_name(dt) + (dt == DType::F16 ? " (largest 65504)" : "") + "; keep this model in a wider type");
     std::memcpy(dst + 2 * i, &h, 2);
   }
 }
@@ -55,6 +62,10 @@ std::vector<float> stored_values(const WeightMap& w, const StoredTensor& t) {
     convert_to_f32(t.dtype, t.data, v.data(), v.size());
   }
   release_stored(t);
+  // A NaN or Inf would be carried into the converted model (or quantised to zeros with scale 0): refuse.
+  if (const int64_t bad = count_non_finite(v.data(), int64_t(v.size())))
+    throw Error(w.label() + ": tensor " + t.name + " holds " + std::to_string(bad) +
+                " NaN/Inf values; the weights are broken (egopd-convert inspect lists them)");
   return v;
 }
 
@@ -133,7 +144,7 @@ std::vector<OutTensor> converted_tensors(const WeightMap& w, TargetDType to, DTy
     out.push_back({key, dt, t->shape, [wm, t, dt](uint8_t* dst) {
                      if (t->dtype == dt) return copy_stored(*t, dst);
                      const std::vector<float> v = stored_values(*wm, *t);
-                     store_floats(v.data(), v.size(), dt, dst);
+                     store_floats(v.data(), v.size(), dt, dst, wm->label() + ": tensor " + t->name);
                    }});
   }
   return out;

@@ -7,6 +7,7 @@
 #include "convert/model_check.h"
 #include "convert/tensor_io.h"
 #include "core/error.h"
+#include "core/finite_check.h"
 #include "pipeline/synthetic_model.h"
 
 namespace egopd {
@@ -25,13 +26,22 @@ std::string human_bytes(uint64_t b) {
 struct Totals {
   uint64_t tensors = 0, elements = 0, bytes = 0;
   std::map<std::string, uint64_t> per_dtype;  // dtype -> tensors
+  std::vector<std::string> non_finite;        // "name: k of n values are NaN or Inf"
 };
 
+// Every value of every float tensor is read: a single NaN or Inf in a download makes the whole model unusable.
 Totals list_map(const WeightMap& w, std::ostream& out, bool list) {
   Totals t;
   for (const auto& k : w.keys()) {
     const StoredTensor* s = w.find(k);
     if (list) out << "  " << k << "  " << dtype_name(s->dtype) << "  " << s->shape_str() << "  " << s->nbytes << "\n";
+    if (is_float_weight(s->dtype)) {
+      const Tensor f = s->to_f32();
+      const int64_t bad = count_non_finite(f.data(), f.numel());
+      if (bad > 0)
+        t.non_finite.push_back(k + ": " + std::to_string(bad) + " of " + std::to_string(f.numel()) +
+                               " values are NaN or Inf");
+    }
     ++t.tensors;
     t.elements += uint64_t(s->numel());
     t.bytes += s->nbytes;
@@ -81,6 +91,8 @@ size_t inspect_component(const fs::path& dir, const std::string& folder, std::os
     const WeightMap w = open_weights_dir(dir.string(), mc.stem, folder);
     const Totals t = list_map(w, out, list);
     print_totals(t, out, "  ");
+    for (const std::string& n : t.non_finite) out << "  problem: non-finite " << n << "\n";
+    problems += t.non_finite.size();
     all->tensors += t.tensors;
     all->elements += t.elements;
     all->bytes += t.bytes;
@@ -103,6 +115,7 @@ size_t inspect_component(const fs::path& dir, const std::string& folder, std::os
       for (const auto& m : c.missing) out << "    missing " << m << "\n";
       for (const auto& m : c.wrong_shape) out << "    shape " << m << "\n";
       for (const auto& m : c.unexpected) out << "    unexpected " << m << "\n";
+      for (const auto& m : c.wrong_dtype) out << "    dtype " << m << " (weights must be F32, F16, BF16 or I8 + _scale)\n";
     }
     problems += c.problems();
   } catch (const Error& e) {
@@ -169,8 +182,11 @@ size_t inspect_path(const std::string& path, std::ostream& out, const InspectOpt
   }
   const WeightMap w = open_weights_path(path, path);
   out << path << "\n";
-  print_totals(list_map(w, out, options.list_tensors), out, "");
-  return 0;
+  const Totals t = list_map(w, out, options.list_tensors);
+  print_totals(t, out, "");
+  for (const std::string& n : t.non_finite) out << "problem: non-finite " << n << "\n";
+  out << (t.non_finite.empty() ? std::string("no problems\n") : std::to_string(t.non_finite.size()) + " problems\n");
+  return t.non_finite.size();
 }
 
 }  // namespace egopd

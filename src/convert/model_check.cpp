@@ -30,6 +30,7 @@ std::string KeyCheck::summary(const std::string& label) const {
   part(missing, "missing");
   part(wrong_shape, "with the wrong shape");
   part(unexpected, "unexpected");
+  part(wrong_dtype, "of a type the runtime cannot use as a weight");
   if (ok()) s += " ok";
   return s;
 }
@@ -60,6 +61,10 @@ KeyCheck check_keys(const std::string& folder, const std::vector<std::pair<std::
       c.missing.push_back(key + " " + shape.str());
     } else if (it->second.shape != shape.vec()) {
       c.wrong_shape.push_back(key + " has " + shape_string(it->second.shape) + ", expected " + shape.str());
+    } else if (!is_float_weight(it->second.dtype)) {
+      const auto scale = stored.find(key + "_scale");
+      const bool q8 = it->second.dtype == DType::I8 && scale != stored.end() && scale->second.dtype == DType::F32;
+      if (!q8) c.wrong_dtype.push_back(key + " is " + dtype_name(it->second.dtype));
     }
   }
   for (const auto& [key, info] : stored)

@@ -21,8 +21,9 @@ struct KeyCheck {
   std::vector<std::string> missing;      // "key [shape]"
   std::vector<std::string> wrong_shape;  // "key has [a], expected [b]"
   std::vector<std::string> unexpected;   // "key"
-  bool ok() const { return missing.empty() && wrong_shape.empty() && unexpected.empty(); }
-  size_t problems() const { return missing.size() + wrong_shape.size() + unexpected.size(); }
+  std::vector<std::string> wrong_dtype;  // "key is I32" (not F32/F16/BF16, nor I8 with its F32 _scale)
+  bool ok() const { return missing.empty() && wrong_shape.empty() && unexpected.empty() && wrong_dtype.empty(); }
+  size_t problems() const { return missing.size() + wrong_shape.size() + unexpected.size() + wrong_dtype.size(); }
   // "unet: 2 missing (a [3], b [4]); 1 unexpected (c)" — one line, long lists shortened.
   std::string summary(const std::string& label) const;
 };

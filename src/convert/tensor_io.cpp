@@ -8,6 +8,7 @@
 #include <set>
 
 #include "core/atomic_file.h"
+#include "core/interrupt.h"
 #include "core/error.h"
 #include "core/safetensors.h"
 
@@ -219,6 +220,13 @@ void copy_file_atomic(const std::string& from, const std::string& to) {
   }
   if (in.bad()) throw Error(from + ": read failed");
   w.commit();
+}
+
+void write_model_folder(const std::string& out, const std::string& marker,
+                        const std::function<void(const std::string& dir)>& fill) {
+  install_interrupt_handlers();
+  AtomicDir dir(out, marker);
+  dir.fill_and_commit(fill);
 }
 
 }  // namespace egopd

@@ -33,6 +33,12 @@ struct WriteOptions {
 std::vector<std::string> write_weights(const std::string& dir, const std::string& stem,
                                        const std::vector<OutTensor>& tensors, const WriteOptions& options);
 
+// A model (or component) folder written whole: fill(dir) writes into a temporary folder beside `out`, which is moved
+// into place when complete, so a failed or interrupted conversion leaves no partial folder and an earlier model
+// folder there (one holding `marker`, e.g. model_index.json) untouched; any other non-empty folder is an error.
+void write_model_folder(const std::string& out, const std::string& marker,
+                        const std::function<void(const std::string& dir)>& fill);
+
 // `--shard-size MB` as bytes (0 = no sharding); error on a negative size.
 uint64_t shard_bytes_from_mb(int64_t mb);
 

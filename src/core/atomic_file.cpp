@@ -13,6 +13,7 @@
 #include <system_error>
 
 #include "core/error.h"
+#include "core/interrupt.h"
 
 namespace egopd {
 namespace fs = std::filesystem;
@@ -94,7 +95,7 @@ void sync_folder(const fs::path& dir) {
 
 }  // namespace
 
-AtomicDir::AtomicDir(const std::string& target) {
+AtomicDir::AtomicDir(const std::string& target, const std::string& marker) {
   const fs::path t = normal_target(target);
   if (t.empty() || t.filename() == "." || t.filename() == "..")
     throw Error(target + ": not usable as an output folder name");
@@ -105,6 +106,9 @@ AtomicDir::AtomicDir(const std::string& target) {
   if (!parent.empty() && !fs::is_directory(parent))
     throw Error(parent.string() + ": cannot create the folder that holds " + target_);
   if (fs::exists(t) && !fs::is_directory(t)) throw Error(target_ + ": exists and is not a folder");
+  if (fs::is_directory(t) && !fs::is_empty(t, ec) && !fs::exists(t / marker))
+    throw Error(target_ + ": exists and is not an earlier output of this command (no " + marker +
+                "); it would be replaced as a whole: choose another folder or remove it");
   static std::atomic<int> counter{0};
   for (int attempt = 0;; ++attempt) {
     const fs::path tmp =
@@ -129,6 +133,18 @@ std::string AtomicDir::user_facing(const std::string& message) const {
   for (size_t at = out.find(tmp_); at != std::string::npos; at = out.find(tmp_, at + target_.size()))
     out.replace(at, tmp_.size(), target_);
   return out;
+}
+
+void AtomicDir::fill_and_commit(const std::function<void(const std::string& dir)>& fill) {
+  try {
+    fill(tmp_);
+  } catch (const Interrupted&) {
+    throw;
+  } catch (const Error& e) {
+    throw Error(user_facing(e.what()));
+  }
+  throw_if_interrupted("before moving the outputs into place");
+  commit();
 }
 
 void AtomicDir::commit() {

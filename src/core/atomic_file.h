@@ -3,6 +3,7 @@
 // temporary name beside their target and swapped in as a whole. An interrupted or failed run leaves the previous
 // output (or nothing) and no temporary files.
 #include <cstddef>
+#include <functional>
 #include <string>
 
 namespace egopd {
@@ -31,10 +32,12 @@ void write_file_atomic(const std::string& path, const std::string& text);
 // An output folder built whole: files are written into path() (`<parent>/.<name>.tmp-<pid>-<n>`, created here);
 // commit() puts it in place of `target`, replacing an earlier folder as a whole (nothing of the old run survives,
 // e.g. heatmaps of frames a shorter re-run does not have). Destroying an uncommitted AtomicDir removes the
-// temporary folder and everything in it.
+// temporary folder and everything in it. Only an earlier output is ever replaced: an existing non-empty `target`
+// without the file `marker` (e.g. summary.json) is an error here, before any work, so a mistyped --out never
+// deletes someone's folder.
 class AtomicDir {
  public:
-  explicit AtomicDir(const std::string& target);
+  AtomicDir(const std::string& target, const std::string& marker);
   ~AtomicDir();
   AtomicDir(const AtomicDir&) = delete;
   AtomicDir& operator=(const AtomicDir&) = delete;
@@ -43,6 +46,9 @@ class AtomicDir {
   // `message` with the temporary folder's name replaced by the target's, so errors name the files users know.
   std::string user_facing(const std::string& message) const;
   void commit();
+  // Runs fill(path()), then commit(). Errors name the target's files, not the temporary ones; a SIGINT/SIGTERM
+  // (core/interrupt.h) that arrives meanwhile is rethrown as is and leaves nothing behind.
+  void fill_and_commit(const std::function<void(const std::string& dir)>& fill);
 
  private:
   std::string target_, tmp_;

@@ -282,21 +282,6 @@ void announce_prompt(const std::optional<std::string>& prompt, bool truncated, c
   if (truncated) say("%swarning: the prompt is longer than 77 CLIP tokens and was truncated", prefix.c_str());
 }
 
-// Runs `fill` on the temporary folder of `out`, then moves the folder into place. Errors name the target's files,
-// not the temporary ones; an interruption that arrives while filling still leaves nothing behind.
-template <class Fill>
-void fill_then_commit(AtomicDir& out, Fill&& fill) {
-  try {
-    fill(out.path());
-  } catch (const Interrupted&) {
-    throw;
-  } catch (const Error& e) {
-    throw Error(out.user_facing(e.what()));
-  }
-  throw_if_interrupted("before moving the outputs into place");
-  out.commit();
-}
-
 }  // namespace
 
 std::pair<float, float> parse_guidance(const std::string& text) {
@@ -386,7 +371,7 @@ PredictModel::PredictModel(const PredictOptions& o) {
       say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
       // Built beside its place and moved in whole: parallel runs (batch array tasks) never see half a model; the
       // model is deterministic, so when another run got there first its copy is as good as ours.
-      AtomicDir tmp(model_dir_);
+      AtomicDir tmp(model_dir_, "model_index.json");
       write_synthetic_model(tmp.path(), "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
       if (!fs::exists(fs::path(model_dir_) / "model_index.json")) tmp.commit();
     }
@@ -408,7 +393,7 @@ PredictModel::~PredictModel() = default;
 
 ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
                          const std::string& out_dir, const std::string& prefix) {
-  AtomicDir out(out_dir);
+  AtomicDir out(out_dir, "summary.json");
   Prepared p = prepare_clip(model, o, src, out.path(), prefix);
   EgoPressureDiffPipeline& pipe = p.pipe();
   StageTimes& times = p.times;
@@ -431,7 +416,7 @@ ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, con
   say("%swriting outputs", prefix.c_str());
   FrameForces ff;
   double total = 0;
-  fill_then_commit(out, [&](const std::string& dir) {
+  out.fill_and_commit([&](const std::string& dir) {
     {
       ScopedStage st(&times, "write");
       ff = write_outputs(dir, p, r);
@@ -618,10 +603,9 @@ int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
   const PromptFields base = src.meta ? *src.meta : PromptFields{};
   const std::vector<Variant> variants = make_variants(base, vary);
   const PredictModel model(o);
-  AtomicDir out(o.out_dir);  // every variant, the figure and forces.csv appear together or not at all
+  AtomicDir out(o.out_dir, "forces.csv");  // every variant, the figure and forces.csv appear together or not at all
   std::string done;
-  fill_then_commit(out,
-                   [&](const std::string& dir) { done = counterfactual_into(dir, model, o, src, variants, vary); });
+  out.fill_and_commit([&](const std::string& dir) { done = counterfactual_into(dir, model, o, src, variants, vary); });
   say("%s", done.c_str());
   say("outputs in %s: one folder per variant (%s, ...), comparison.png, forces.csv%s", o.out_dir.c_str(),
       variants[0].folder.c_str(), model.builtin() ? " (synthetic model: forces not meaningful)" : "");

@@ -197,5 +197,24 @@ TEST_F(TokenizerDir, MissingOrMalformedFilesAreErrors) {
   EXPECT_THROW(ClipTokenizer::load_dir((dir / "nope").string()), Error);
 }
 
+// An empty vocabulary or merges file is a broken download, not a tokenizer that splits into characters.
+TEST_F(TokenizerDir, EmptyVocabularyOrMergesAreErrors) {
+  write("merges.txt", "#version: 0.2\n\n");
+  try {
+    ClipTokenizer::load_dir(dir.string());
+    FAIL() << "empty merges accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("merges.txt: no merges"), std::string::npos) << e.what();
+  }
+  fs::copy_file(kTokenizerDir + "/merges.txt", dir / "merges.txt", fs::copy_options::overwrite_existing);
+  write("vocab.json", "{}");
+  try {
+    ClipTokenizer::load_dir(dir.string());
+    FAIL() << "empty vocabulary accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vocab.json: the vocabulary is empty"), std::string::npos) << e.what();
+  }
+}
+
 }  // namespace
 }  // namespace egopd

@@ -5,8 +5,11 @@
 
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 
+#include "core/error.h"
 #include "core/weights.h"
 
 namespace egopd::test {
@@ -28,6 +31,22 @@ struct ScratchDir {
   std::string str(const std::string& sub = "") const { return sub.empty() ? path.string() : (path / sub).string(); }
 };
 
+// Sets element `index` of the F32 tensor `tensor` of a safetensors file in place (a corrupt download in one value).
+inline void set_stored_f32(const std::filesystem::path& file, const std::string& tensor, int64_t index, float value) {
+  std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
+  uint64_t header_len = 0;
+  f.read(reinterpret_cast<char*>(&header_len), 8);
+  std::string header(header_len, '\0');
+  f.read(header.data(), std::streamsize(header_len));
+  const nlohmann::json h = nlohmann::json::parse(header);
+  ASSERT_TRUE(h.contains(tensor)) << tensor;
+  ASSERT_EQ(h[tensor]["dtype"], "F32");
+  const uint64_t begin = h[tensor]["data_offsets"][0].get<uint64_t>();
+  f.seekp(std::streamoff(8 + header_len + begin + uint64_t(index) * 4));
+  f.write(reinterpret_cast<const char*>(&value), 4);
+  ASSERT_TRUE(f.good()) << file;
+}
+
 // Same key set, and for every key the same dtype, shape and bytes.
 inline void expect_same_tensors(const WeightMap& a, const WeightMap& b, const std::string& what) {
   ASSERT_EQ(a.keys(), b.keys()) << what;
@@ -39,6 +58,11 @@ inline void expect_same_tensors(const WeightMap& a, const WeightMap& b, const st
     ASSERT_EQ(x->nbytes, y->nbytes) << what << ": " << k;
     EXPECT_EQ(std::memcmp(x->data, y->data, x->nbytes), 0) << what << ": " << k << " differs";
   }
+}
+
+inline std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
 // Runs f, expecting an egopd::Error whose one-line message contains every needle.

@@ -35,7 +35,7 @@ class AtomicOutputs : public ::testing::Test {
 
 TEST_F(AtomicOutputs, CommitCreatesTheFolder) {
   {
-    AtomicDir d((root / "out").string());
+    AtomicDir d((root / "out").string(), "a.txt");
     EXPECT_FALSE(fs::exists(root / "out"));
     put(fs::path(d.path()) / "a.txt", "new");
     d.commit();
@@ -49,7 +49,7 @@ TEST_F(AtomicOutputs, CommitReplacesAnEarlierFolderAsAWhole) {
   put(root / "out" / "heatmap_009.png", "old run, more frames");
   put(root / "out" / "a.txt", "old");
   {
-    AtomicDir d((root / "out/").string());  // a trailing separator names the same folder
+    AtomicDir d((root / "out/").string(), "a.txt");  // a trailing separator names the same folder
     put(fs::path(d.path()) / "a.txt", "new");
     d.commit();
   }
@@ -62,7 +62,7 @@ TEST_F(AtomicOutputs, UncommittedFolderIsRemovedAndTheOldOneKept) {
   fs::create_directories(root / "out");
   put(root / "out" / "a.txt", "old");
   try {
-    AtomicDir d((root / "out").string());
+    AtomicDir d((root / "out").string(), "a.txt");
     put(fs::path(d.path()) / "a.txt", "half");
     throw Error("stage failed");
   } catch (const Error&) {
@@ -79,10 +79,27 @@ TEST_F(AtomicOutputs, StaleTemporariesOfAKilledRunAreFound) {
   EXPECT_TRUE(fs::exists(root / ".other.tmp-123-0"));
 }
 
+TEST_F(AtomicOutputs, AFolderThatIsNotAnEarlierOutputIsNeverReplaced) {
+  fs::create_directories(root / "out");
+  put(root / "out" / "thesis.tex", "years of work");
+  try {
+    AtomicDir d((root / "out").string(), "summary.json");
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not an earlier output of this command (no summary.json)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read(root / "out" / "thesis.tex"), "years of work");
+  EXPECT_EQ(entries(), 1);
+  fs::remove(root / "out" / "thesis.tex");
+  EXPECT_NO_THROW(AtomicDir((root / "out").string(), "summary.json"));  // an empty folder may be used
+}
+
 TEST_F(AtomicOutputs, TargetThatIsAFileIsAnError) {
   put(root / "out", "a file");
   try {
-    AtomicDir d((root / "out").string());
+    AtomicDir d((root / "out").string(), "a.txt");
     FAIL() << "no error";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("is not a folder"), std::string::npos) << e.what();

@@ -12,6 +12,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "convert/test_util.h"
 #include "core/error.h"
 #include "core/finite_check.h"
 #include "pipeline/predict_run.h"
@@ -92,31 +93,17 @@ class Guards : public ::testing::Test {
     edit(j);
     std::ofstream(file) << j.dump(2);
   }
-  // Sets element `index` of an F32 tensor of a safetensors file in place.
-  static void poke(const fs::path& file, const std::string& tensor, int64_t index, float value) {
-    std::fstream f(file, std::ios::in | std::ios::out | std::ios::binary);
-    uint64_t header_len = 0;
-    f.read(reinterpret_cast<char*>(&header_len), 8);
-    std::string header(header_len, '\0');
-    f.read(header.data(), std::streamsize(header_len));
-    const nlohmann::json h = nlohmann::json::parse(header);
-    ASSERT_TRUE(h.contains(tensor)) << tensor;
-    ASSERT_EQ(h[tensor]["dtype"], "F32");
-    const uint64_t begin = h[tensor]["data_offsets"][0].get<uint64_t>();
-    f.seekp(std::streamoff(8 + header_len + begin + uint64_t(index) * 4));
-    f.write(reinterpret_cast<const char*>(&value), 4);
-  }
 };
 
 TEST_F(Guards, NaNInOneUNetWeight) {
-  poke(root / "model" / "unet" / "diffusion_pytorch_model.safetensors", "conv_out.bias", 0,
+  test::set_stored_f32(root / "model" / "unet" / "diffusion_pytorch_model.safetensors", "conv_out.bias", 0,
        std::numeric_limits<float>::quiet_NaN());
   const std::string e = predict_error();
   EXPECT_NE(e.find("non-finite values in the latents after step 1 of 4 (U-Net output)"), std::string::npos) << e;
 }
 
 TEST_F(Guards, InfInTheVaeDecoder) {
-  poke(root / "model" / "vae" / "diffusion_pytorch_model.safetensors", "decoder.conv_out.bias", 1,
+  test::set_stored_f32(root / "model" / "vae" / "diffusion_pytorch_model.safetensors", "decoder.conv_out.bias", 1,
        std::numeric_limits<float>::infinity());
   const std::string e = predict_error();
   EXPECT_NE(e.find("non-finite values in the decoded heatmaps (VAE decoder output)"), std::string::npos) << e;

@@ -199,11 +199,23 @@ TEST_F(Predict, FailedOrInterruptedRunKeepsThePreviousFolder) {
   EXPECT_EQ(read(root / "keep" / "taxels.csv"), before);
   EXPECT_EQ(temporaries_in(root), 0);
 
+  PredictOptions cf = options("keep_cf");
   request_interrupt(SIGINT);
-  EXPECT_THROW(run_counterfactual(other, parse_vary("weight=1,omit")), Interrupted);
+  EXPECT_THROW(run_counterfactual(cf, parse_vary("weight=1,omit")), Interrupted);
   clear_interrupt();
-  EXPECT_FALSE(fs::exists(other.out_dir + "/weight_1g"));
+  EXPECT_FALSE(fs::exists(cf.out_dir));
   EXPECT_EQ(temporaries_in(root), 0);
+
+  // A folder that is not an earlier output of the command (here: predict's, for counterfactual) is never replaced.
+  try {
+    run_counterfactual(o, parse_vary("weight=1,omit"));
+    ADD_FAILURE() << "replaced a folder that is not a counterfactual output";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not an earlier output of this command (no forces.csv)"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read(root / "keep" / "taxels.csv"), before);
 }
 
 }  // namespace

@@ -6,11 +6,15 @@
 #include <string>
 #include <vector>
 
+#include <filesystem>
+#include <functional>
+
 #include "cli/args.h"
 #include "convert/dtype_convert.h"
 #include "convert/from_original.h"
 #include "convert/graft.h"
 #include "convert/inspect.h"
+#include "convert/tensor_io.h"
 #include "core/error.h"
 #include "pipeline/synthetic_model.h"
 
@@ -38,7 +42,9 @@ int cmd_synth(const Args& a) {
   const TargetDType t = parse_target_dtype(d);
   if (t == TargetDType::Q8) throw Error("synth: --dtype must be f16, f32 or bf16 (quantise afterwards with dtype --to q8)");
   const DType dtype = t == TargetDType::F16 ? DType::F16 : t == TargetDType::BF16 ? DType::BF16 : DType::F32;
-  write_synthetic_model(out, preset, uint64_t(seed), dtype, int(lcm));
+  write_model_folder(out, "model_index.json", [&](const std::string& dir) {
+    write_synthetic_model(dir, preset, uint64_t(seed), dtype, int(lcm));
+  });
   std::string sampler = "Euler 25 steps";
   if (lcm) sampler = "AnimateLCM " + std::to_string(lcm) + " steps";
   std::printf("wrote %s model (%s, seed %lld, %s) to %s\n", preset.c_str(), dtype_name(dtype),
@@ -53,7 +59,8 @@ int cmd_from_original(const Args& a) {
   const std::string out = a.require("out");
   const std::string src = single_positional(a, "checkpoint (.safetensors or .safetensors.index.json)");
   a.finish();
-  const FromOriginalReport r = convert_from_original(src, out, o);
+  FromOriginalReport r;
+  write_model_folder(out, "model_index.json", [&](const std::string& dir) { r = convert_from_original(src, dir, o); });
   std::printf("mapped %zu source tensors (%zu dropped) to %zu tensors in %s\n", r.mapped, r.dropped, r.written,
               out.c_str());
   return 0;
@@ -68,7 +75,11 @@ int cmd_graft(const Args& a) {
   o.seed = uint64_t(a.get_int("seed", int64_t(o.seed)));
   o.write = write_options(a);
   a.finish();
-  graft_model(o);
+  write_model_folder(o.out_dir, "model_index.json", [&](const std::string& dir) {
+    GraftOptions into = o;
+    into.out_dir = dir;
+    graft_model(into);
+  });
   std::printf("wrote EgoPressureDiff model (zero-initialised PIFR, mask encoder with zero conv_out) to %s\n",
               o.out_dir.c_str());
   return 0;
@@ -80,7 +91,14 @@ int cmd_dtype(const Args& a) {
   const WriteOptions w = write_options(a);
   const std::string in = single_positional(a, "model directory or weight file");
   a.finish();
-  const DTypeReport r = convert_dtype(in, out, to, w);
+  DTypeReport r;
+  if (std::filesystem::is_directory(in)) {  // a model or component folder: written whole
+    const bool model = std::filesystem::exists(std::filesystem::path(in) / "model_index.json");
+    write_model_folder(out, model ? "model_index.json" : "config.json",
+                       [&](const std::string& dir) { r = convert_dtype(in, dir, to, w); });
+  } else {  // one weight file or index: its files are written atomically
+    r = convert_dtype(in, out, to, w);
+  }
   std::printf("converted %zu weight files (%zu tensors, %zu quantised; %zu other files copied): %.1f MiB -> %.1f MiB\n",
               r.files, r.tensors, r.quantized, r.copied_files, double(r.bytes_in) / 1048576.0,
               double(r.bytes_out) / 1048576.0);
