@@ -133,7 +133,7 @@ std::vector<std::string> sequence_folders(const ManifestBuildOptions& o) {
   }
   for (const auto& e : fs::directory_iterator(o.root))
     if (e.is_directory() && e.path().filename().string()[0] != '.') seqs.push_back(e.path().filename().string());
-  std::sort(seqs.begin(), seqs.end());
+  std::sort(seqs.begin(), seqs.end(), natural_less);
   if (seqs.empty()) throw Error(o.root + ": no sequence folders (and no motion_list.txt)");
   return seqs;
 }

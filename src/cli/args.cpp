@@ -1,7 +1,13 @@
 #include "cli/args.h"
 
+#include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
 #include <new>
 
 #include "core/error.h"
@@ -48,21 +54,50 @@ std::string Args::require(const std::string& name) const {
   return it->second;
 }
 
-int64_t Args::get_int(const std::string& name, int64_t fallback) const {
-  std::string v = get(name, "");
-  if (v.empty()) return fallback;
-  char* end = nullptr;
-  long long x = std::strtoll(v.c_str(), &end, 10);
-  if (*end != '\0') throw Error(command_ + ": option --" + name + " expects an integer, got '" + v + "'");
+namespace {
+bool all_digits(const std::string& s, size_t from) {
+  if (s.size() <= from) return false;
+  for (size_t i = from; i < s.size(); ++i)
+    if (s[i] < '0' || s[i] > '9') return false;
+  return true;
+}
+}  // namespace
+
+int64_t Args::get_int(const std::string& name, int64_t fallback, int64_t lo, int64_t hi) const {
+  if (!has(name)) return fallback;
+  const std::string v = get(name, "");
+  const std::string bounds = lo == INT64_MIN ? "" : " (" + std::to_string(lo) + ".." + std::to_string(hi) + ")";
+  if (!all_digits(v, v.size() && v[0] == '-' ? 1 : 0))
+    throw Error(command_ + ": --" + name + " expects an integer" + bounds + ", got '" + v + "'");
+  errno = 0;
+  const long long x = std::strtoll(v.c_str(), nullptr, 10);
+  if (errno == ERANGE || x < lo || x > hi)
+    throw Error(command_ + ": --" + name + " must be between " + std::to_string(lo) + " and " + std::to_string(hi) +
+                ", got " + v);
+  return x;
+}
+
+uint64_t Args::get_uint64(const std::string& name, uint64_t fallback) const {
+  if (!has(name)) return fallback;
+  const std::string v = get(name, "");
+  if (!all_digits(v, 0))
+    throw Error(command_ + ": --" + name + " expects an integer from 0 to 18446744073709551615, got '" + v + "'");
+  errno = 0;
+  const unsigned long long x = std::strtoull(v.c_str(), nullptr, 10);
+  if (errno == ERANGE)
+    throw Error(command_ + ": --" + name + " must be between 0 and 18446744073709551615, got " + v);
   return x;
 }
 
 double Args::get_double(const std::string& name, double fallback) const {
-  std::string v = get(name, "");
-  if (v.empty()) return fallback;
+  if (!has(name)) return fallback;
+  const std::string v = get(name, "");
   char* end = nullptr;
-  double x = std::strtod(v.c_str(), &end);
-  if (*end != '\0') throw Error(command_ + ": option --" + name + " expects a number, got '" + v + "'");
+  errno = 0;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || std::isspace(static_cast<unsigned char>(v[0])))
+    throw Error(command_ + ": --" + name + " expects a number, got '" + v + "'");
+  if (!std::isfinite(x) || errno == ERANGE) throw Error(command_ + ": --" + name + " is out of range: " + v);
   return x;
 }
 
@@ -78,6 +113,9 @@ bool Args::flag(const std::string& name) const {
 }
 
 void Args::finish() const {
+  if (!positional_.empty() && !positional_read_)
+    throw Error(command_ + ": unexpected argument '" + positional_[0] + "' (options are --name value; see egopd " +
+                command_ + " --help)");
   for (const auto& [k, v] : values_)
     if (!read_.count(k)) throw Error(command_ + ": unknown option --" + k + " (see egopd " + command_ + " --help)");
   for (const auto& k : flags_)
@@ -92,6 +130,11 @@ int run_reporting_errors(const char* program, const std::function<int()>& body) 
     return e.exit_code();
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "%s: out of memory\n", program);
+  } catch (const std::filesystem::filesystem_error& e) {  // the library's own wording, in our one-line form
+    std::fprintf(stderr, "%s: %s: %s\n", program, e.path1().empty() ? "file system" : e.path1().c_str(),
+                 e.code().message().c_str());
+  } catch (const nlohmann::json::exception& e) {  // never "[json.exception...]": JSON that reached no reader's check
+    std::fprintf(stderr, "%s: malformed or non-UTF-8 JSON data (JSON error %d)\n", program, e.id);
   } catch (const std::exception& e) {  // egopd::Error and anything else: already one line
     std::fprintf(stderr, "%s: %s\n", program, e.what());
   }

@@ -70,6 +70,12 @@ const Command kCommands[] = {
      "egopd predict [--model DIR --video CLIP.mp4|FRAMES_DIR] [--masks DIR] [--meta META.json | --prompt TEXT]\n"
      "              [--sampler euler|lcm] [--steps N] [--seed 0] [--frames 16] [--size 256] [--guidance MIN,MAX]\n"
      "              [--decode-chunk N] [--low-mem] [--template FILE] --out DIR\n"
+     "  Bounds: --seed 0..2^64-1, --frames 1..1024, --steps 1..1000, --size 64..4096 (a multiple of 64),\n"
+     "  --decode-chunk 1..1024, --threads 1..1024; anything else (and any argument without --name) is an error.\n"
+     "  Frame folders are read in frame-number order (2.png before 10.png); a folder of the data release's\n"
+     "  NNNNN_rgb.png / NNNNN_mask.png / NNNNN_pressure.png files uses the *_rgb (frames) and *_mask (masks) images.\n"
+     "  --meta: a JSON object of the prompt fields obj_name, weight, material, gender, age, subj_weight, bodyfat;\n"
+     "  any other key (a dataset's category, hand length, ... or a misspelt field) gets a warning naming it.\n"
      "  Grasp pressure of a clip: F frames sampled uniformly, squashed to SIZE x SIZE; masks: one image per sampled\n"
      "  frame (> 127 = hand). Prompt: --prompt verbatim, or built from --meta fields; neither: no-text mode.\n"
      "  Sampler/steps default to the model's scheduler (--sampler lcm on an Euler model: 4 steps). Writes into DIR:\n"
@@ -161,9 +167,7 @@ int run(int argc, char** argv) {
     Args a(name, rest);
     init_threads_from_env();
     if (a.has("threads")) {
-      int64_t t = a.get_int("threads", 0);
-      if (t < 1 || t > 1024) throw Error(name + ": --threads must be between 1 and 1024");
-      set_num_threads(int(t));
+      set_num_threads(int(a.get_int("threads", 0, 1, 1024)));
     }
     return c.run(a);
   }

@@ -13,19 +13,13 @@ PredictOptions read_predict_options(const Args& a) {
   o.meta_path = a.get("meta", "");
   if (a.has("prompt")) o.prompt = a.get("prompt", "");
   o.sampler = a.get("sampler", "");
-  const int64_t steps = a.get_int("steps", 0);
-  if (a.has("steps") && (steps < 1 || steps > 1000)) throw Error(a.command() + ": --steps must be between 1 and 1000");
-  o.steps = int(steps);
-  const int64_t seed = a.get_int("seed", 0);
-  if (seed < 0) throw Error(a.command() + ": --seed must be >= 0");
-  o.seed = uint64_t(seed);
-  o.frames = a.get_int("frames", 0);
-  if (a.has("frames") && (o.frames < 1 || o.frames > 1024))
-    throw Error(a.command() + ": --frames must be between 1 and 1024");
-  o.size = a.get_int("size", 256);
+  // Bounds as documented in `egopd predict --help`.
+  o.steps = int(a.get_int("steps", 0, 1, 1000));
+  o.seed = a.get_uint64("seed", 0);
+  o.frames = a.get_int("frames", 0, 1, 1024);
+  o.size = a.get_int("size", 256, 64, 4096);
   if (a.has("guidance")) o.guidance = parse_guidance(a.get("guidance", ""));
-  o.decode_chunk = a.get_int("decode-chunk", 0);
-  if (a.has("decode-chunk") && o.decode_chunk < 1) throw Error(a.command() + ": --decode-chunk must be at least 1");
+  o.decode_chunk = a.get_int("decode-chunk", 0, 1, 1024);
   o.low_mem = a.flag("low-mem");
   o.template_path = a.get("template", "");
   o.out_dir = a.require("out");

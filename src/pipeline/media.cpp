@@ -32,6 +32,30 @@ std::vector<int64_t> uniform_frame_indices(int64_t n, int64_t count) {
   return idx;
 }
 
+bool natural_less(const std::string& a, const std::string& b) {
+  size_t i = 0, j = 0;
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  while (i < a.size() && j < b.size()) {
+    if (digit(a[i]) && digit(b[j])) {  // compare the numbers: leading zeros dropped, then length, then digits
+      size_t ie = i, je = j;
+      while (ie < a.size() && digit(a[ie])) ++ie;
+      while (je < b.size() && digit(b[je])) ++je;
+      size_t is = i, js = j;
+      while (is + 1 < ie && a[is] == '0') ++is;
+      while (js + 1 < je && b[js] == '0') ++js;
+      if (ie - is != je - js) return ie - is < je - js;
+      const int c = a.compare(is, ie - is, b, js, je - js);
+      if (c != 0) return c < 0;
+      i = ie, j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i, ++j;
+    }
+  }
+  if ((i < a.size()) != (j < b.size())) return j < b.size();  // a is a prefix of b
+  return a < b;  // equal as numbers (e.g. 5 and 05): any fixed order
+}
+
 std::vector<std::string> list_image_files(const std::string& dir) {
   static const char* const kExt[] = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp"};
   std::vector<std::string> files;
@@ -45,7 +69,7 @@ std::vector<std::string> list_image_files(const std::string& dir) {
   }
   if (ec) throw Error(dir + ": cannot list folder (" + ec.message() + ")");
   std::sort(files.begin(), files.end(), [](const std::string& a, const std::string& b) {
-    return fs::path(a).filename().string() < fs::path(b).filename().string();
+    return natural_less(fs::path(a).filename().string(), fs::path(b).filename().string());
   });
   return files;
 }

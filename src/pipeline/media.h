@@ -15,7 +15,10 @@ namespace egopd {
 // round(linspace(0, n - 1, count)) with round-half-to-even like numpy; count >= 1, n >= 1.
 std::vector<int64_t> uniform_frame_indices(int64_t n, int64_t count);
 
-// Image files of a folder (png, jpg, jpeg, bmp, tif, tiff, webp; case-insensitive), sorted by file name.
+// File-name order by frame number: runs of digits compare as numbers (2.png before 10.png, frame_9 before
+// frame_10), everything else character by character.
+bool natural_less(const std::string& a, const std::string& b);
+// Image files of a folder (png, jpg, jpeg, bmp, tif, tiff, webp; case-insensitive) in natural_less order of names.
 std::vector<std::string> list_image_files(const std::string& dir);
 
 // The files whose name (without extension) ends in `suffix`, e.g. "_rgb" for the data release's 00005_rgb.png.

@@ -18,6 +18,8 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/interrupt.h"
+#include "core/utf8.h"
+#include "pressure/hand_template.h"
 #include "core/memory.h"
 #include "core/safetensors.h"
 #include "core/timing.h"
@@ -114,11 +116,18 @@ void check_predict_options(const PredictOptions& o) {
   if (o.decode_chunk < 0) throw Error("--decode-chunk must be positive");
   if (!o.sampler.empty() && o.sampler != "euler" && o.sampler != "lcm")
     throw Error("--sampler must be euler or lcm (got '" + o.sampler + "')");
+  // Prompts and paths go into summary.json: invalid UTF-8 is rejected now, not by the JSON writer at the end.
+  if (o.prompt && !is_valid_utf8(*o.prompt)) throw Error("--prompt is not valid UTF-8 text");
+  for (const auto& [flag, path] : {std::pair<const char*, const std::string*>{"--model", &o.model_dir},
+                                   {"--video", &o.video}, {"--masks", &o.masks_dir}, {"--meta", &o.meta_path},
+                                   {"--template", &o.template_path}, {"--out", &o.out_dir}})
+    if (!is_valid_utf8(*path)) throw Error(std::string(flag) + ": the path is not valid UTF-8");
   require_exists(o.model_dir, "model directory");
   require_exists(o.video, "video file or frame folder");
   require_exists(o.masks_dir, "mask folder");
   require_exists(o.meta_path, "metadata file");
   require_exists(o.template_path, "hand template");
+  if (o.template_path.empty()) default_template_path();  // EGOPD_TEMPLATE naming a missing file fails now
 }
 
 namespace {

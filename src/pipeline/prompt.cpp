@@ -31,8 +31,18 @@ std::string format_prompt_field(const std::string& field, const nlohmann::json& 
   return num;
 }
 
-PromptFields prompt_fields_from_json(const nlohmann::json& meta, const std::string& source) {
+PromptFields prompt_fields_from_json(const nlohmann::json& meta, const std::string& source,
+                                     std::vector<std::string>* unknown_keys) {
   if (!meta.is_object()) throw Error(source + ": metadata must be a JSON object");
+  for (const auto& item : meta.items()) {  // a misspelt field must not silently vanish from the prompt
+    bool known = false;
+    for (const char* k : kFields) known = known || item.key() == k;
+    if (known) continue;
+    if (!unknown_keys)
+      throw Error(source + ": unknown field '" + item.key() +
+                  "' (fields: obj_name, weight, material, gender, age, subj_weight, bodyfat)");
+    unknown_keys->push_back(item.key());
+  }
   PromptFields f;
   for (const char* k : kFields)
     if (meta.contains(k) && !meta[k].is_null()) f[k] = format_prompt_field(k, meta[k], source);
@@ -48,7 +58,12 @@ PromptFields load_prompt_fields(const std::string& path) {
   } catch (const std::exception&) {
     throw Error(path + ": metadata is not valid JSON");
   }
-  return prompt_fields_from_json(j, path);
+  std::vector<std::string> unknown;
+  PromptFields f = prompt_fields_from_json(j, path, &unknown);
+  for (const std::string& k : unknown)
+    std::fprintf(stderr, "warning: %s: field '%s' is not a prompt field and is ignored (fields: obj_name, weight, "
+                 "material, gender, age, subj_weight, bodyfat)\n", path.c_str(), k.c_str());
+  return f;
 }
 
 static bool present(const PromptFields& f, const char* k) {

@@ -4,6 +4,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -13,9 +14,12 @@ namespace egopd {
 using PromptFields = std::map<std::string, std::string>;
 
 // Reads META.json ({"obj_name": "a CocaCola", "weight": 355, ...}) and formats every known field
-// (weight 355 -> "355g", subj_weight 74 -> "74kg", bodyfat 25 -> "25%", strings verbatim). Unknown keys are
-// ignored; a value of the wrong type is an error naming the file and field.
-PromptFields prompt_fields_from_json(const nlohmann::json& meta, const std::string& source);
+// (weight 355 -> "355g", subj_weight 74 -> "74kg", bodyfat 25 -> "25%", strings verbatim). A value of the wrong type
+// is an error naming the file and field; an unknown key is one too, unless `unknown_keys` collects them.
+PromptFields prompt_fields_from_json(const nlohmann::json& meta, const std::string& source,
+                                     std::vector<std::string>* unknown_keys = nullptr);
+// --meta: a dataset's metadata file may carry more than the prompt fields (category, hand length, ...): each other
+// key gets a warning naming it on stderr and is ignored.
 PromptFields load_prompt_fields(const std::string& meta_path);
 // Formats one field's raw value ("355" -> "355g" for weight); used by --vary weight=355g,...
 std::string format_prompt_field(const std::string& field, const nlohmann::json& value, const std::string& source);

@@ -239,8 +239,12 @@ std::vector<std::pair<std::string, Shape>> component_parameters(const std::strin
 
 std::string shipped_tokenizer_dir() {
   std::vector<fs::path> candidates;
-  if (const char* env = std::getenv("EGOPD_TOKENIZER_DIR"); env && *env) candidates.push_back(env);
   std::error_code ec;
+  if (const char* env = std::getenv("EGOPD_TOKENIZER_DIR"); env && *env) {  // named explicitly: no fallback
+    if (!fs::is_regular_file(fs::path(env) / "vocab.json", ec) || !fs::is_regular_file(fs::path(env) / "merges.txt", ec))
+      throw Error(std::string("EGOPD_TOKENIZER_DIR=") + env + ": no vocab.json and merges.txt there");
+    return env;
+  }
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
   if (!ec) candidates.push_back(exe.parent_path().parent_path() / "share" / "egopd" / "tokenizer");
 #ifdef EGOPD_DATA_DIR

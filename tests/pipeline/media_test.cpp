@@ -80,6 +80,25 @@ LoadedClip sampled(int64_t frames, int64_t source) {
   return c;
 }
 
+TEST(Media, FramesInFrameNumberOrder) {
+  EXPECT_TRUE(natural_less("2.png", "10.png"));
+  EXPECT_FALSE(natural_less("10.png", "2.png"));
+  EXPECT_TRUE(natural_less("frame_9.jpg", "frame_10.jpg"));
+  EXPECT_TRUE(natural_less("00005_rgb.png", "00010_rgb.png"));
+  EXPECT_TRUE(natural_less("a.png", "b.png"));
+  EXPECT_TRUE(natural_less("x1", "x1a"));
+  EXPECT_FALSE(natural_less("7.png", "7.png"));
+  EXPECT_NE(natural_less("5.png", "05.png"), natural_less("05.png", "5.png"));  // a strict order even then
+  TempDir d;
+  for (const char* name : {"10.png", "2.png", "1.png", "100.png"}) {
+    cv::Mat m(4, 4, CV_8UC3, cv::Scalar(0, 0, 0));
+    ASSERT_TRUE(cv::imwrite(d / name, m));
+  }
+  std::vector<std::string> names;
+  for (const std::string& f : list_image_files(d.path.string())) names.push_back(fs::path(f).filename().string());
+  EXPECT_EQ(names, (std::vector<std::string>{"1.png", "2.png", "10.png", "100.png"}));
+}
+
 TEST(Media, LoadErrors) {
   TempDir d;
   EXPECT_THROW(load_clip(d / "missing.mp4", 4, 64), Error);

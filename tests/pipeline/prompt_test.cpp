@@ -61,9 +61,13 @@ TEST(Prompt, FieldFormatting) {
 }
 
 TEST(Prompt, FieldsFromJson) {
-  const PromptFields f = prompt_fields_from_json(
-      {{"obj_name", "a CocaCola"}, {"weight", 355}, {"bodyfat", 25}, {"category", "bottle"}, {"age", nullptr}}, "meta");
-  EXPECT_EQ(f.size(), 3u);  // unknown keys and nulls ignored
+  const nlohmann::json meta = {
+      {"obj_name", "a CocaCola"}, {"weight", 355}, {"bodyfat", 25}, {"category", "bottle"}, {"age", nullptr}};
+  std::vector<std::string> unknown;
+  const PromptFields f = prompt_fields_from_json(meta, "meta", &unknown);
+  EXPECT_EQ(f.size(), 3u);  // nulls left out
+  EXPECT_EQ(unknown, std::vector<std::string>{"category"});  // reported to the caller, never dropped silently
+  EXPECT_THROW(prompt_fields_from_json(meta, "meta"), Error);  // strict readers (manifests): an error
   EXPECT_EQ(f.at("weight"), "355g");
   EXPECT_EQ(f.at("bodyfat"), "25%");
   EXPECT_THROW(prompt_fields_from_json({{"weight", true}}, "meta"), Error);

@@ -35,7 +35,7 @@ std::string single_positional(const Args& a, const char* what) {
 int cmd_synth(const Args& a) {
   const std::string preset = a.get("config", "tiny");
   const std::string out = a.require("out");
-  const int64_t seed = a.get_int("seed", 0);
+  const uint64_t seed = a.get_uint64("seed", 0);
   const std::string d = a.get("dtype", preset == "svd-xt" ? "f16" : "f32");
   const int64_t lcm = a.get_int("lcm-steps", 0);
   a.finish();
@@ -47,8 +47,8 @@ int cmd_synth(const Args& a) {
   });
   std::string sampler = "Euler 25 steps";
   if (lcm) sampler = "AnimateLCM " + std::to_string(lcm) + " steps";
-  std::printf("wrote %s model (%s, seed %lld, %s) to %s\n", preset.c_str(), dtype_name(dtype),
-              static_cast<long long>(seed), sampler.c_str(), out.c_str());
+  std::printf("wrote %s model (%s, seed %llu, %s) to %s\n", preset.c_str(), dtype_name(dtype),
+              static_cast<unsigned long long>(seed), sampler.c_str(), out.c_str());
   return 0;
 }
 
@@ -72,7 +72,7 @@ int cmd_graft(const Args& a) {
   o.text_encoder_dir = a.require("text-encoder");
   o.tokenizer_dir = a.require("tokenizer");
   o.out_dir = a.require("out");
-  o.seed = uint64_t(a.get_int("seed", int64_t(o.seed)));
+  o.seed = a.get_uint64("seed", o.seed);
   o.write = write_options(a);
   a.finish();
   write_model_folder(o.out_dir, "model_index.json", [&](const std::string& dir) {
