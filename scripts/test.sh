@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The test command: install what is missing, build (Release), run every unit and golden test; then build the tests
-# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too; finally a Slurm job
-# array on a one-node local cluster (tests/slurm/slurm_test.sh).
+# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too; then fuzz every
+# parser for a bounded time (scripts/fuzz.sh) and run a Slurm job array on a one-node local cluster
+# (tests/slurm/slurm_test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -17,6 +18,9 @@ cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON
 cmake --build build-asan -j"$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
+
+echo "== fuzzing: every parser of user files, 30 s each (libFuzzer, ASan + UBSan) =="
+./scripts/fuzz.sh 30
 
 echo "== Slurm: a job array on a one-node local cluster =="
 if [ "$(id -u)" -eq 0 ]; then

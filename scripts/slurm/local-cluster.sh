@@ -23,13 +23,7 @@ need_root() {
 }
 
 install_packages() {
-  local missing=()
-  for p in slurmctld slurmd slurm-client munge; do dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p"); done
-  if [ ${#missing[@]} -gt 0 ]; then
-    echo "installing: ${missing[*]}"
-    apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-  fi
+  "$(dirname "$0")/../install-packages.sh" slurmctld slurmd slurm-client munge
 }
 
 write_config() {

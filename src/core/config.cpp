@@ -33,7 +33,10 @@ const nlohmann::json& Config::at(const std::string& key) const {
 int64_t Config::get_int(const std::string& key) const {
   const auto& v = at(key);
   if (v.is_number_integer()) return v.get<int64_t>();
-  if (v.is_number_float() && v.get<double>() == double(int64_t(v.get<double>()))) return int64_t(v.get<double>());
+  if (v.is_number_float()) {  // 16.0 is an integer; 1e102 or 2.5 is not (and casting them would be undefined)
+    const double x = v.get<double>();
+    if (std::isfinite(x) && x == std::floor(x) && x >= -9.2e18 && x <= 9.2e18) return int64_t(x);
+  }
   fail(key, "expected an integer, got " + v.dump());
 }
 

@@ -73,17 +73,19 @@ uint16_t float_to_half(float f) {
 
 void convert_to_f32(DType t, const void* src, float* dst, size_t n) {
   switch (t) {
+    // Stored data is only byte-aligned (a safetensors header length need not be a multiple of 8): every element is
+    // read with memcpy, and an empty tensor (possibly without data) is never touched.
     case DType::F32:
-      std::memcpy(dst, src, n * 4);
+      if (n > 0) std::memcpy(dst, src, n * 4);
       return;
-    case DType::F16: {
-      const auto* s = static_cast<const uint16_t*>(src);
-      for (size_t i = 0; i < n; ++i) dst[i] = half_to_float(s[i]);
-      return;
-    }
+    case DType::F16:
     case DType::BF16: {
-      const auto* s = static_cast<const uint16_t*>(src);
-      for (size_t i = 0; i < n; ++i) dst[i] = bf16_to_float(s[i]);
+      const auto* s = static_cast<const uint8_t*>(src);
+      for (size_t i = 0; i < n; ++i) {
+        uint16_t h;
+        std::memcpy(&h, s + 2 * i, 2);
+        dst[i] = t == DType::F16 ? half_to_float(h) : bf16_to_float(h);
+      }
       return;
     }
     default:

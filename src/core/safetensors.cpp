@@ -47,11 +47,20 @@ void MappedFile::release_pages(size_t offset, size_t len) const {
   if (end > begin) ::madvise(const_cast<uint8_t*>(data_) + begin, end - begin, MADV_DONTNEED);
 }
 
-int64_t StoredTensor::numel() const {
+namespace {
+// Elements of a shape; -1 when the product does not fit int64. A zero dimension makes it 0 whatever the others are
+// (so [2^32, 2^32, 0] is an empty tensor, not an overflow).
+int64_t shape_numel(const std::vector<int64_t>& shape) {
+  for (int64_t d : shape)
+    if (d == 0) return 0;
   int64_t n = 1;
-  for (int64_t d : shape) n *= d;
+  for (int64_t d : shape)
+    if (__builtin_mul_overflow(n, d, &n)) return -1;
   return n;
 }
+}  // namespace
+
+int64_t StoredTensor::numel() const { return shape_numel(shape); }
 
 std::string StoredTensor::shape_str() const {
   std::string s = "[";
@@ -69,6 +78,7 @@ Tensor StoredTensor::to_f32() const {
 
 std::vector<int64_t> StoredTensor::to_i64() const {
   std::vector<int64_t> out(static_cast<size_t>(numel()));
+  if (out.empty()) return out;  // an empty tensor may have no data pointer at all
   if (dtype == DType::I64) {
     std::memcpy(out.data(), data, out.size() * 8);
   } else if (dtype == DType::I32) {
@@ -143,8 +153,9 @@ SafeTensorsFile::SafeTensorsFile(const std::string& path) {
       throw bad("data_offsets [" + std::to_string(b) + "," + std::to_string(e) + "] outside the data section (" +
                 std::to_string(data_size) + " bytes)");
     // numel x size, guarding against overflow
-    unsigned __int128 want = dtype_size(t.dtype);
-    for (int64_t d : t.shape) want *= uint64_t(d);
+    const int64_t n = shape_numel(t.shape);
+    if (n < 0) throw bad("shape " + t.shape_str() + " has more elements than can be addressed");
+    const unsigned __int128 want = (unsigned __int128)(uint64_t(n)) * dtype_size(t.dtype);
     if (want != (unsigned __int128)(e - b))
       throw bad("byte size " + std::to_string(e - b) + " does not match " + dtype_name(t.dtype) + " x " + t.shape_str());
     t.nbytes = size_t(e - b);

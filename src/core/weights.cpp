@@ -133,7 +133,7 @@ const void* WeightMap::aligned_data(const StoredTensor& t) const {
   std::shared_ptr<uint8_t[]> copy(new uint8_t[std::max<size_t>(t.nbytes, 8) + 8]);
   uint8_t* p = copy.get();
   while (reinterpret_cast<uintptr_t>(p) % 8) ++p;
-  std::memcpy(p, t.data, t.nbytes);
+  if (t.nbytes > 0) std::memcpy(p, t.data, t.nbytes);
   copies_.push_back(copy);
   return p;
 }

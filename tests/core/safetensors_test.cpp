@@ -1,6 +1,8 @@
 // safetensors reading (header validation, dtypes, alignment), writing (atomic, round trip), weight maps
 // (shape-checked lookup, prefix views, unused keys, sharded checkpoints) and config access.
 #include <gtest/gtest.h>
+
+#include <cmath>
 #include <unistd.h>
 
 #include <cstring>
@@ -134,6 +136,45 @@ TEST(SafeTensors, RejectsBadHeaders) {
   EXPECT_NE(error_of([&] { SafeTensorsFile f(d.file("absent.safetensors")); }).find("cannot open"), std::string::npos);
 }
 
+// Undefined behaviour found by the fuzzers (caught by the sanitizer build of these tests before the fixes).
+TEST(SafeTensors, F16DataAtAnOddOffsetIsReadExactly) {
+  TempDir d;
+  // A 61-byte header puts the data section at byte 69: every 16-bit value is misaligned.
+  std::string header = R"({"h":{"dtype":"F16","shape":[3],"data_offsets":[0,6]}})";
+  header.resize(61, ' ');
+  ASSERT_NE((8 + header.size()) % 2, 0u);
+  write_raw(d.file("odd.safetensors"), header, std::string("\x00\x3c\x00\xc0\x00\x7c", 6));  // 1, -2, inf
+  SafeTensorsFile f(d.file("odd.safetensors"));
+  const Tensor t = f.find("h")->to_f32();
+  EXPECT_EQ(t[0], 1.0f);
+  EXPECT_EQ(t[1], -2.0f);
+  EXPECT_TRUE(std::isinf(t[2]));
+}
+
+TEST(SafeTensors, EmptyTensorsConvertWithoutTouchingData) {
+  TempDir d;
+  write_raw(d.file("e.safetensors"),
+            R"({"f":{"dtype":"F32","shape":[0],"data_offsets":[0,0]},"i":{"dtype":"I64","shape":[2,0],"data_offsets":[0,0]},)"
+            R"("h":{"dtype":"BF16","shape":[0,5],"data_offsets":[0,0]}})",
+            "");
+  SafeTensorsFile f(d.file("e.safetensors"));
+  EXPECT_EQ(f.find("f")->to_f32().numel(), 0);
+  EXPECT_TRUE(f.find("i")->to_i64().empty());
+  EXPECT_EQ(f.find("h")->to_f32().numel(), 0);
+}
+
+TEST(SafeTensors, HugeShapesNeverOverflow) {
+  TempDir d;
+  const std::string p = d.file("huge.safetensors");
+  write_raw(p, R"({"z":{"dtype":"F32","shape":[4294967296,4294967296,0],"data_offsets":[0,0]}})", "");
+  EXPECT_EQ(SafeTensorsFile(p).find("z")->numel(), 0);  // a zero dimension: empty, however large the others
+  write_raw(p, R"({"w":{"dtype":"F32","shape":[4294967296,4294967296,4],"data_offsets":[0,0]}})", "");
+  EXPECT_NE(error_of([&] { SafeTensorsFile f(p); }).find("more elements than can be addressed"), std::string::npos);
+  // 2^62 x 4 bytes wraps to 0 in 64 bits: still rejected.
+  write_raw(p, R"({"w":{"dtype":"F32","shape":[4611686018427387904],"data_offsets":[0,0]}})", "");
+  EXPECT_NE(error_of([&] { SafeTensorsFile f(p); }).find("does not match"), std::string::npos);
+}
+
 TEST(SafeTensors, AtomicWriteLeavesNoTemporaryAndReplaces) {
   TempDir d;
   const std::string p = d.file("out.txt");
@@ -228,6 +269,16 @@ TEST(WeightMap, RecorderEnumeratesRequests) {
   ASSERT_EQ(rec.recorded().size(), 2u);
   EXPECT_EQ(rec.recorded()[0].first, "x.w");
   EXPECT_EQ(rec.recorded()[0].second, (Shape{3, 4}));
+}
+
+// Found by fuzz_configs: an integer field holding a float too large for int64 was cast (undefined behaviour).
+TEST(Config, IntegerFieldsHoldingHugeOrFractionalNumbersAreErrors) {
+  const Config c(nlohmann::json::parse(R"({"a": 16.0, "b": 1.1e102, "c": 2.5, "d": -1e300})"), "x.json");
+  EXPECT_EQ(c.get_int("a"), 16);
+  for (const char* k : {"b", "c", "d"})
+    EXPECT_NE(error_of([&] { c.get_int(k); }).find("x.json: field '" + std::string(k) + "': expected an integer"),
+              std::string::npos)
+        << k;
 }
 
 TEST(Config, ListsOrScalarsPerBlockAndErrors) {

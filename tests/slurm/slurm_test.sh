@@ -16,6 +16,7 @@ work=$(realpath "$work")
 export XDG_CACHE_HOME=$work/cache OMP_WAIT_POLICY=passive
 unset SLURM_ARRAY_TASK_ID SLURM_ARRAY_TASK_COUNT SLURM_CPUS_PER_TASK EGOPD_THREADS
 start=$(date +%s)
+"$repo/scripts/install-packages.sh" python3  # compares summary.json files
 
 # The cluster's state in a short /tmp path (munge's socket path has a length limit); always taken down.
 export EGOPD_SLURM_DIR
