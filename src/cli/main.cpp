@@ -101,8 +101,8 @@ const Command kCommands[] = {
      "  benchmark split\"). Fields of a line: id, frames, masks, meta | prompt, gt, split; paths relative to the\n"
      "  manifest's folder. Manifests may also be written by hand."},
     {"batch", cmd_batch,
-     "egopd batch --manifest MANIFEST.jsonl --out DIR [--shard I/N] [predict options except --video --masks\n"
-     "            --meta --prompt]\n"
+     "egopd batch --manifest MANIFEST.jsonl --out DIR [--shard I/N] [predict options]\n"
+     "  (predict's options except --video, --masks, --meta and --prompt, which each manifest line gives)\n"
      "  Every clip of the manifest with the model loaded once; outputs of clip ID in DIR/ID/ (as predict writes\n"
      "  them), each folder appearing whole. A clip whose folder exists is skipped, so running the same command again\n"
      "  resumes. A clip that fails is recorded in DIR/ID.failed (its error) and the batch goes on; exit status 1 if\n"
