@@ -66,6 +66,8 @@ HandTemplate HandTemplate::load(const std::string& path) {
     doc = nlohmann::json::parse(ss.str());
   } catch (const nlohmann::json::parse_error& e) {
     throw Error(path + ": not valid JSON (byte " + std::to_string(e.byte) + ")");
+  } catch (const nlohmann::json::exception&) {  // e.g. a number too large for a double (found by fuzz_configs)
+    throw Error(path + ": not valid JSON (a number out of range)");
   }
   return parse(doc, path);
 }

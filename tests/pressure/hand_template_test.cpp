@@ -1,7 +1,10 @@
 // Template loading: the shipped synthetic default and one-line errors naming file and field.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstdlib>
+#include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "core/error.h"
@@ -63,6 +66,21 @@ TEST(HandTemplate, RepeatedClosingVertexDropped) {
   auto j = minimal();
   j["outline"].push_back({0, 0});
   EXPECT_EQ(HandTemplate::parse(j, "t.json").outline().size(), 4u);
+}
+
+// Found by fuzz_configs: a number too large for a double escaped as a raw JSON library exception.
+TEST(HandTemplate, UnparsableFilesAreOneLineErrors) {
+  const std::filesystem::path p = std::filesystem::temp_directory_path() / ("egopd-tmpl-" + std::to_string(::getpid()));
+  for (const char* text : {"{\"a\": 8888888888888888888888888888888888888E8888888}", "{\"a\": ", "\xff"}) {
+    std::ofstream(p) << text;
+    try {
+      HandTemplate::load(p.string());
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(": not valid JSON"), std::string::npos) << e.what();
+    }
+  }
+  std::filesystem::remove(p);
 }
 
 TEST(HandTemplate, ErrorsNameFileAndField) {
