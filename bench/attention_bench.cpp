@@ -60,8 +60,10 @@ double run_measured(benchmark::State& state, const char* name, double amount, Fn
 }
 
 void set_path(benchmark::State& state, int arg_index) {
-  egopd::set_force_portable(state.range(arg_index) == 0);
-  state.SetLabel(state.range(arg_index) ? "avx2" : "portable");
+  const auto path = egopd::KernelPath(state.range(arg_index));
+  if (!egopd::kernel_path_supported(path)) return state.SkipWithError("kernel path not supported by this CPU");
+  egopd::set_kernel_path(path);
+  state.SetLabel(egopd::kernel_path_name(path));
 }
 
 // Self-attention on a fused [batch, tokens, 3*C] qkv buffer (as the U-Net's attention blocks produce it).
@@ -86,7 +88,7 @@ void BM_SelfAttention(benchmark::State& state) {
   });
   state.counters["%peak"] = 100.0 * state.counters["GFLOP/s"] / kPeakGflops;
   state.counters["%peak/core"] = 100.0 * per_core / (kPeakGflops / egopd::physical_cores());
-  egopd::set_force_portable(false);
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_SelfAttention)
     ->ArgNames({"batch", "tokens", "heads", "dh", "avx2"})
@@ -120,7 +122,7 @@ void BM_TemporalAttention(benchmark::State& state) {
     benchmark::DoNotOptimize(out.data());
   });
   state.counters["%peak/core"] = 100.0 * per_core / (kPeakGflops / egopd::physical_cores());
-  egopd::set_force_portable(false);
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_TemporalAttention)
     ->ArgNames({"frames", "tokens", "heads", "dh", "avx2"})
@@ -140,7 +142,7 @@ void BM_Geglu(benchmark::State& state) {
     egopd::geglu(p.data(), rows, d, out.data());
     benchmark::DoNotOptimize(out.data());
   });
-  egopd::set_force_portable(false);
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_Geglu)
     ->ArgNames({"rows", "d", "avx2"})
@@ -162,7 +164,7 @@ void BM_GroupNormSilu(benchmark::State& state) {
     egopd::group_norm(x.data(), y.data(), batch, frames, c, s, groups, gamma.data(), beta.data(), 1e-5f, true);
     benchmark::DoNotOptimize(y.data());
   });
-  egopd::set_force_portable(false);
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_GroupNormSilu)
     ->ArgNames({"batch", "frames", "c", "s", "groups", "avx2"})
@@ -182,7 +184,7 @@ void BM_LayerNorm(benchmark::State& state) {
     egopd::layer_norm(x.data(), y.data(), rows, c, gamma.data(), beta.data(), 1e-5f);
     benchmark::DoNotOptimize(y.data());
   });
-  egopd::set_force_portable(false);
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_LayerNorm)->ArgNames({"rows", "c", "avx2"})->Args({16384, 320, 1})->Args({16384, 320, 0})
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();

@@ -93,8 +93,7 @@ int bench_gemm(const Args& a) {
   r.extra["dtype"] = dtype_name(dt);
   r.extra["trans_b"] = trans_b;
   r.extra["repeat"] = repeat;
-  r.extra["kernels"] = use_avx2() ? "avx2" : "portable";
-  print_bench_report(r, json);
+    print_bench_report(r, json);
   return 0;
 }
 
@@ -132,8 +131,7 @@ int bench_conv2d(const Args& a) {
   r.extra["stride"] = stride;
   r.extra["dtype"] = dtype_name(dt);
   r.extra["repeat"] = repeat;
-  r.extra["kernels"] = use_avx2() ? "avx2" : "portable";
-  print_bench_report(r, json);
+    print_bench_report(r, json);
   return 0;
 }
 

@@ -5,15 +5,16 @@
 #include <cstdlib>
 
 #include "cli/commands.h"
+#include "core/cpu.h"
+#include "core/kernels/fma_peak.h"
 #include "core/memory.h"
 #include "egopd/version.h"
 
 namespace egopd {
 
 double peak_gflops(int threads) {
-  double per_core = 32.0 * 3.07;
-  if (const char* e = std::getenv("EGOPD_PEAK_GFLOPS")) per_core = std::atof(e) > 0 ? std::atof(e) : per_core;
-  return per_core * threads;
+  if (const char* e = std::getenv("EGOPD_PEAK_GFLOPS"); e && std::atof(e) > 0) return std::atof(e) * threads;
+  return measured_peak_gflops(kernel_path(), threads);
 }
 
 double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call) {
@@ -35,9 +36,13 @@ void print_bench_report(const BenchReport& r, bool json) {
   j["seconds"] = r.seconds;
   j["gflop"] = r.gflop;
   j["gflops"] = gflops;
-  j["percent_of_peak"] = 100.0 * gflops / peak_gflops(r.threads);
-  j["peak_gflops"] = peak_gflops(r.threads);
+  const double peak = peak_gflops(r.threads);
+  j["percent_of_peak"] = 100.0 * gflops / peak;
+  j["peak_gflops"] = peak;
   j["threads"] = r.threads;
+  j["cpu"] = cpu_info().model;
+  j["kernels"] = kernel_path_name(kernel_path());
+  j["kernel_features"] = kernel_path_features(kernel_path());
   j["peak_rss_bytes"] = peak_rss_bytes();
   j["version"] = EGOPD_VERSION;
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();

@@ -42,7 +42,8 @@ void print_bench_report(const BenchReport& r, bool json);
 // Median wall seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first touches of mapped
 // weights and scratch buffers).
 double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call);
-// FP32 peak of this machine class: threads x 32 FLOP/cycle x 3.07 GHz (override: EGOPD_PEAK_GFLOPS per core).
+// FP32 peak of `threads` threads on the kernel path in use, measured with an FMA loop (override:
+// EGOPD_PEAK_GFLOPS per core).
 double peak_gflops(int threads);
 
 }  // namespace egopd

@@ -140,7 +140,8 @@ void print_help() {
       "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
-      "  EGOPD_PORTABLE=1  use the portable kernels even where AVX2/FMA/F16C is available\n");
+      "  EGOPD_KERNELS   kernel path: avx512, avx2 or portable (default: the best this CPU supports;\n"
+      "                  EGOPD_PORTABLE=1 is the same as EGOPD_KERNELS=portable)\n");
 }
 
 int run(int argc, char** argv) {
@@ -150,7 +151,9 @@ int run(int argc, char** argv) {
     return rest.empty() ? 2 : 0;
   }
   if (rest[0] == "--version") {
-    std::printf("egopd %s (kernels: %s)\n", EGOPD_VERSION, use_avx2() ? "avx2+fma+f16c" : "portable");
+    const CpuInfo& ci = cpu_info();
+    std::printf("egopd %s (kernels: %s, %s; cpu: %s)\n", EGOPD_VERSION, kernel_path_name(kernel_path()),
+                kernel_path_features(kernel_path()).c_str(), ci.model.empty() ? "unknown" : ci.model.c_str());
     return 0;
   }
   const std::string name = rest[0];

@@ -4,36 +4,161 @@
 #include <cpuid.h>
 #endif
 
+#include <algorithm>
 #include <cstdlib>
 #include <cstring>
 
+#include "core/error.h"
+
 namespace egopd {
 
-static int g_force_portable = -1;  // -1: read EGOPD_PORTABLE once
+namespace {
 
-bool cpu_has_avx2_fma_f16c() {
 #if defined(__x86_64__) || defined(__i386__)
-  static const bool ok = [] {
-    __builtin_cpu_init();
-    // F16C from CPUID leaf 1 (ECX bit 29): not every compiler's __builtin_cpu_supports knows "f16c".
-    unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-    const bool f16c = __get_cpuid(1, &eax, &ebx, &ecx, &edx) && (ecx & (1u << 29));
-    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") && f16c;
-  }();
-  return ok;
-#else
-  return false;
-#endif
+struct Regs {
+  unsigned a = 0, b = 0, c = 0, d = 0;
+};
+Regs cpuid(unsigned leaf, unsigned sub = 0) {
+  Regs r;
+  if (!__get_cpuid_count(leaf, sub, &r.a, &r.b, &r.c, &r.d)) r = Regs{};
+  return r;
+}
+unsigned max_leaf(unsigned base) {
+  unsigned a = 0, b = 0, c = 0, d = 0;
+  __cpuid(base, a, b, c, d);
+  return a;
+}
+uint64_t xgetbv0() {
+  unsigned lo = 0, hi = 0;
+  __asm__ volatile("xgetbv" : "=a"(lo), "=d"(hi) : "c"(0));
+  return (uint64_t(hi) << 32) | lo;
 }
 
-void set_force_portable(bool on) { g_force_portable = on ? 1 : 0; }
-
-bool use_avx2() {
-  if (g_force_portable < 0) {
-    const char* e = std::getenv("EGOPD_PORTABLE");
-    g_force_portable = (e && *e && std::strcmp(e, "0") != 0) ? 1 : 0;
+// Deterministic cache parameters (Intel leaf 4, AMD leaf 0x8000001D share the layout): size of each level's
+// data or unified cache.
+void read_caches(unsigned leaf, CpuInfo& ci) {
+  for (unsigned i = 0; i < 16; ++i) {
+    const Regs r = cpuid(leaf, i);
+    const unsigned type = r.a & 0x1f;
+    if (type == 0) break;
+    if (type == 2) continue;  // instruction cache
+    const unsigned level = (r.a >> 5) & 7;
+    const int64_t size = int64_t((r.b >> 22) + 1) * (((r.b >> 12) & 0x3ff) + 1) * ((r.b & 0xfff) + 1) * (int64_t(r.c) + 1);
+    if (level == 1) ci.l1d = size;
+    if (level == 2) ci.l2 = size;
+    if (level == 3) ci.l3 = size;
   }
-  return !g_force_portable && cpu_has_avx2_fma_f16c();
+}
+
+CpuInfo detect() {
+  CpuInfo ci;
+  const unsigned max_std = max_leaf(0), max_ext = max_leaf(0x80000000u);
+  const Regs l1 = cpuid(1);
+  const bool osxsave = l1.c & (1u << 27);
+  const uint64_t xcr0 = osxsave ? xgetbv0() : 0;
+  const bool os_avx = (xcr0 & 0x6) == 0x6, os_avx512 = (xcr0 & 0xe6) == 0xe6;
+  const Regs l7 = max_std >= 7 ? cpuid(7, 0) : Regs{};
+  const Regs l7_1 = max_std >= 7 && l7.a >= 1 ? cpuid(7, 1) : Regs{};
+  const bool fma = l1.c & (1u << 12), f16c = l1.c & (1u << 29), avx2 = l7.b & (1u << 5);
+  ci.avx2_fma_f16c = os_avx && fma && f16c && avx2;
+  const bool f = l7.b & (1u << 16), dq = l7.b & (1u << 17), bw = l7.b & (1u << 30), vl = l7.b & (1u << 31);
+  ci.avx512 = ci.avx2_fma_f16c && os_avx512 && f && dq && bw && vl;
+  ci.avx512_vnni = ci.avx512 && (l7.c & (1u << 11));
+  ci.avx512_bf16 = ci.avx512 && (l7_1.a & (1u << 5));
+  if (max_ext >= 0x80000004u) {
+    char brand[49] = {};
+    for (unsigned i = 0; i < 3; ++i) {
+      const Regs r = cpuid(0x80000002u + i);
+      std::memcpy(brand + 16 * i, &r, 16);
+    }
+    ci.model = brand;
+    ci.model.erase(0, ci.model.find_first_not_of(' '));
+    ci.model.erase(ci.model.find_last_not_of(' ') + 1);
+  }
+  const Regs vendor = cpuid(0);
+  const bool amd = vendor.b == 0x68747541u;  // "Auth"
+  if (amd && max_ext >= 0x8000001Du)
+    read_caches(0x8000001Du, ci);
+  else if (max_std >= 4)
+    read_caches(4, ci);
+  return ci;
+}
+#else
+CpuInfo detect() { return CpuInfo{}; }
+#endif
+
+KernelPath best_path(const CpuInfo& ci) {
+  if (ci.avx512) return KernelPath::Avx512;
+  if (ci.avx2_fma_f16c) return KernelPath::Avx2;
+  return KernelPath::Portable;
+}
+
+KernelPath path_from_environment() {
+  const CpuInfo& ci = cpu_info();
+  if (const char* e = std::getenv("EGOPD_KERNELS"); e && *e) {
+    for (KernelPath p : {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512})
+      if (std::strcmp(e, kernel_path_name(p)) == 0) {
+        if (!kernel_path_supported(p))
+          throw Error(std::string("EGOPD_KERNELS=") + e + ": this CPU does not support " + kernel_path_features(p));
+        return p;
+      }
+    throw Error(std::string("EGOPD_KERNELS=") + e + ": unknown kernel path (avx512, avx2 or portable)");
+  }
+  const char* portable = std::getenv("EGOPD_PORTABLE");
+  if (portable && *portable && std::strcmp(portable, "0") != 0) return KernelPath::Portable;
+  return best_path(ci);
+}
+
+int g_path = -1;  // -1: not chosen yet
+
+}  // namespace
+
+const CpuInfo& cpu_info() {
+  static const CpuInfo ci = detect();
+  return ci;
+}
+
+const char* kernel_path_name(KernelPath p) {
+  switch (p) {
+    case KernelPath::Avx512: return "avx512";
+    case KernelPath::Avx2: return "avx2";
+    default: return "portable";
+  }
+}
+
+std::string kernel_path_features(KernelPath p) {
+  switch (p) {
+    case KernelPath::Avx512: return "avx512f+bw+vl+dq";
+    case KernelPath::Avx2: return "avx2+fma+f16c";
+    default: return "scalar";
+  }
+}
+
+bool kernel_path_supported(KernelPath p) {
+  switch (p) {
+    case KernelPath::Avx512: return cpu_info().avx512;
+    case KernelPath::Avx2: return cpu_info().avx2_fma_f16c;
+    default: return true;
+  }
+}
+
+std::vector<KernelPath> supported_kernel_paths() {
+  std::vector<KernelPath> v;
+  for (KernelPath p : {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512})
+    if (kernel_path_supported(p)) v.push_back(p);
+  return v;
+}
+
+KernelPath kernel_path() {
+  if (g_path < 0) g_path = int(path_from_environment());
+  return KernelPath(g_path);
+}
+
+void set_kernel_path(KernelPath p) {
+  if (!kernel_path_supported(p))
+    throw Error(std::string("kernel path ") + kernel_path_name(p) + ": this CPU does not support " +
+                kernel_path_features(p));
+  g_path = int(p);
 }
 
 }  // namespace egopd

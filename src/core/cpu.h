@@ -1,9 +1,37 @@
 #pragma once
-// Run-time choice between the AVX2/FMA/F16C kernels and the portable ones.
+// What the CPU offers (instruction sets, cache sizes, model name) and the kernel path chosen from it once at
+// start-up: avx512 (F+BW+VL+DQ), avx2 (AVX2+FMA+F16C) or portable. EGOPD_KERNELS=avx512|avx2|portable forces one
+// (EGOPD_PORTABLE=1 is the older spelling of EGOPD_KERNELS=portable); forcing a path the CPU lacks is an error.
+#include <cstdint>
+#include <string>
+#include <vector>
+
 namespace egopd {
 
-bool cpu_has_avx2_fma_f16c();  // what the CPU supports
-bool use_avx2();               // supported and not disabled (EGOPD_PORTABLE=1 or set_force_portable(true))
-void set_force_portable(bool on);
+struct CpuInfo {
+  std::string model;  // brand string, e.g. "AMD EPYC 9R14 96-Core Processor"
+  bool avx2_fma_f16c = false;
+  bool avx512 = false;       // F + BW + VL + DQ, with the OS saving the ZMM state
+  bool avx512_bf16 = false;  // vdpbf16ps
+  bool avx512_vnni = false;  // vpdpbusd
+  // Per-core data caches in bytes (0 when unknown; the kernels then assume 32 KiB / 512 KiB / 16 MiB).
+  int64_t l1d = 0, l2 = 0, l3 = 0;
+};
+const CpuInfo& cpu_info();
+
+enum class KernelPath : uint8_t { Portable, Avx2, Avx512 };
+
+const char* kernel_path_name(KernelPath p);      // "portable", "avx2", "avx512"
+std::string kernel_path_features(KernelPath p);  // "avx512f+bw+vl+dq", "avx2+fma+f16c", "scalar"
+bool kernel_path_supported(KernelPath p);
+std::vector<KernelPath> supported_kernel_paths();  // every path this CPU runs, best last
+KernelPath kernel_path();                          // the path in use
+// Use path p from now on (tests and benchmarks); an Error when the CPU lacks it. Not thread-safe: call it
+// between kernel calls, never during one.
+void set_kernel_path(KernelPath p);
+
+// Transitional helpers: the AVX2 kernels also serve the avx512 path where it has none of its own.
+inline bool cpu_has_avx2_fma_f16c() { return cpu_info().avx2_fma_f16c; }
+inline bool use_avx2() { return kernel_path() != KernelPath::Portable; }
 
 }  // namespace egopd

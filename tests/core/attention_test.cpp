@@ -1,4 +1,4 @@
-// Attention against a double-precision naive softmax(QK^T scale)V, on the portable and AVX2 paths.
+// Attention against a double-precision naive softmax(QK^T scale)V, on every kernel path.
 #include "core/kernels/attention.h"
 
 #include <gtest/gtest.h>
@@ -9,14 +9,11 @@
 #include <vector>
 
 #include "core/cpu.h"
+#include "core/kernel_reference.h"
 
 namespace egopd {
 namespace {
 
-struct PathGuard {
-  explicit PathGuard(bool portable) { set_force_portable(portable); }
-  ~PathGuard() { set_force_portable(false); }
-};
 
 struct Case {
   int64_t batch, heads, lq, lk, dh;
@@ -89,9 +86,9 @@ void check_case(const Case& c, uint32_t seed) {
 }
 
 void check_both_paths(const Case& c) {
-  for (bool portable : {true, false}) {
-    PathGuard guard(portable);
-    SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " batch=" << c.batch << " heads="
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
+    SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " batch=" << c.batch << " heads="
                                     << c.heads << " lq=" << c.lq << " lk=" << c.lk << " dh=" << c.dh
                                     << (c.causal ? " causal" : "") << (c.fused ? " fused" : ""));
     check_case(c, 1234u + static_cast<uint32_t>(c.lq * 7 + c.lk * 3 + c.dh));

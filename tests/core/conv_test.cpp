@@ -1,4 +1,4 @@
-// conv2d and conv_temporal3 against double-precision direct loops, on both the portable and the AVX2 path.
+// conv2d and conv_temporal3 against double-precision direct loops, on every kernel path.
 // Tolerance: 2 (K + 3) u sum |w x| (+ bias / residual terms) + 8 u |ref|, u = 2^-24, K = taps summed, times 1.2
 // when an activation follows.
 #include <gtest/gtest.h>
@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -166,13 +167,15 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
                    std::to_string(c.cout) + " hw" + std::to_string(c.hw) + " " + dtype_name(c.dt));
 }
 
-class ConvTest : public ::testing::TestWithParam<bool> {
+class ConvTest : public ::testing::TestWithParam<KernelPath> {
  protected:
   void SetUp() override {
-    if (GetParam() && !cpu_has_avx2_fma_f16c()) GTEST_SKIP() << "no AVX2/FMA/F16C on this CPU";
-    set_force_portable(!GetParam());
+    if (!kernel_path_supported(GetParam()))
+      GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
+    guard_.emplace(GetParam());
   }
-  void TearDown() override { set_force_portable(false); }
+  void TearDown() override { guard_.reset(); }
+  std::optional<test::KernelPathGuard> guard_;
 };
 
 TEST_P(ConvTest, Pointwise1x1) {
@@ -230,8 +233,8 @@ TEST_P(ConvTest, Temporal) {
   EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);
 }
 
-INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::Values(false, true),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "avx2" : "portable"; });
+INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::ValuesIn(test::kAllKernelPaths),
+                         [](const ::testing::TestParamInfo<KernelPath>& i) { return test::kernel_path_test_name(i.param); });
 
 }  // namespace
 }  // namespace egopd

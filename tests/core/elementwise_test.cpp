@@ -1,4 +1,4 @@
-// Element-wise kernels against double-precision references, on the portable and AVX2 paths.
+// Element-wise kernels against double-precision references, on every kernel path.
 #include "core/kernels/elementwise.h"
 
 #include <gtest/gtest.h>
@@ -9,16 +9,11 @@
 #include <vector>
 
 #include "core/cpu.h"
+#include "core/kernel_reference.h"
 
 namespace egopd {
 namespace {
 
-const bool kPaths[] = {true, false};  // force_portable on, off
-
-struct PathGuard {
-  explicit PathGuard(bool portable) { set_force_portable(portable); }
-  ~PathGuard() { set_force_portable(false); }
-};
 
 constexpr double kUlp = 1.1920928955078125e-07;  // 2^-23
 
@@ -41,9 +36,9 @@ std::vector<float> dense_inputs(double lo, double hi, int n) {
 
 TEST(Elementwise, ErfAccurateToFewUlpOverDenseRange) {
   const std::vector<float> in = dense_inputs(-10.0, 10.0, 400001);
-  for (bool portable : kPaths) {
-    PathGuard guard(portable);
-    SCOPED_TRACE(portable ? "portable" : "avx2");
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
+    SCOPED_TRACE(kernel_path_name(path));
     std::vector<float> y = in;
     erf_inplace(y.data(), static_cast<int64_t>(y.size()));
     double worst = 0.0;
@@ -58,9 +53,9 @@ TEST(Elementwise, ErfAccurateToFewUlpOverDenseRange) {
 
 TEST(Elementwise, GeluExactErfFormRelativeAccuracy) {
   const std::vector<float> in = dense_inputs(-14.0, 14.0, 280001);
-  for (bool portable : kPaths) {
-    PathGuard guard(portable);
-    SCOPED_TRACE(portable ? "portable" : "avx2");
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
+    SCOPED_TRACE(kernel_path_name(path));
     std::vector<float> y = in;
     gelu_inplace(y.data(), static_cast<int64_t>(y.size()));
     double worst = 0.0;
@@ -78,9 +73,9 @@ TEST(Elementwise, GeluExactErfFormRelativeAccuracy) {
 
 TEST(Elementwise, SiluAndQuickGelu) {
   const std::vector<float> in = dense_inputs(-95.0, 95.0, 190001);
-  for (bool portable : kPaths) {
-    PathGuard guard(portable);
-    SCOPED_TRACE(portable ? "portable" : "avx2");
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
+    SCOPED_TRACE(kernel_path_name(path));
     std::vector<float> s = in, q = in;
     silu_inplace(s.data(), static_cast<int64_t>(s.size()));
     quick_gelu_inplace(q.data(), static_cast<int64_t>(q.size()));
@@ -99,10 +94,10 @@ TEST(Elementwise, SiluAndQuickGelu) {
 TEST(Elementwise, GegluValueTimesGeluOfGate) {
   std::mt19937 rng(7);
   std::normal_distribution<float> nd(0.0f, 2.0f);
-  for (bool portable : kPaths) {
-    PathGuard guard(portable);
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
     for (auto [rows, d] : {std::pair<int64_t, int64_t>{1, 1}, {3, 13}, {2, 16}, {5, 37}, {300, 200}}) {
-      SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " rows=" << rows << " d=" << d);
+      SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " rows=" << rows << " d=" << d);
       std::vector<float> p(rows * 2 * d), out(rows * d, -7.0f);
       for (float& v : p) v = nd(rng);
       geglu(p.data(), rows, d, out.data());
@@ -163,10 +158,10 @@ TEST(Elementwise, TimestepEmbeddingMatchesFormula) {
 }
 
 TEST(Elementwise, BlendAndAdd) {
-  for (bool portable : kPaths) {
-    PathGuard guard(portable);
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
     for (int64_t n : {1, 7, 37, 100003}) {
-      SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " n=" << n);
+      SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " n=" << n);
       std::vector<float> x(n), y(n);
       for (int64_t i = 0; i < n; ++i) x[i] = std::sin(0.1f * i), y[i] = std::cos(0.37f * i);
       std::vector<float> b = y, s = y;

@@ -1,5 +1,5 @@
-// SGEMM against a double-precision triple loop: every transpose, operand dtype, epilogue and awkward shape, on both
-// the portable and the AVX2 path. Tolerance from the float32 dot-product error bound:
+// SGEMM against a double-precision triple loop: every transpose, operand dtype, epilogue and awkward shape, on every
+// kernel path (portable, AVX2, AVX-512). Tolerance from the float32 dot-product error bound:
 //   |err| <= 2 (K + 3) u sum_k |a_ik b_kj| (+ the bias / residual terms) + 8 u |ref|,   u = 2^-24,
 // scaled by the activation's Lipschitz constant (<= 1.2 for SiLU, GELU, QuickGELU).
 #include <gtest/gtest.h>
@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -142,13 +143,15 @@ int run_case(const Case& c, uint32_t seed) {
   return bad;
 }
 
-class GemmTest : public ::testing::TestWithParam<bool> {
+class GemmTest : public ::testing::TestWithParam<KernelPath> {
  protected:
   void SetUp() override {
-    if (GetParam() && !cpu_has_avx2_fma_f16c()) GTEST_SKIP() << "no AVX2/FMA/F16C on this CPU";
-    set_force_portable(!GetParam());
+    if (!kernel_path_supported(GetParam()))
+      GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
+    guard_.emplace(GetParam());
   }
-  void TearDown() override { set_force_portable(false); }
+  void TearDown() override { guard_.reset(); }
+  std::optional<test::KernelPathGuard> guard_;
 };
 
 TEST_P(GemmTest, AwkwardShapesAllTransposes) {
@@ -257,8 +260,8 @@ TEST(GemmActTest, ApplyActMatchesDoubleReference) {
     }
 }
 
-INSTANTIATE_TEST_SUITE_P(Paths, GemmTest, ::testing::Values(false, true),
-                         [](const ::testing::TestParamInfo<bool>& i) { return i.param ? "avx2" : "portable"; });
+INSTANTIATE_TEST_SUITE_P(Paths, GemmTest, ::testing::ValuesIn(test::kAllKernelPaths),
+                         [](const ::testing::TestParamInfo<KernelPath>& i) { return test::kernel_path_test_name(i.param); });
 
 }  // namespace
 }  // namespace egopd

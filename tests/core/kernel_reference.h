@@ -1,7 +1,9 @@
 #pragma once
 // Double-precision references shared by the kernel tests.
 #include <cmath>
+#include <string>
 
+#include "core/cpu.h"
 #include "core/kernels/gemm.h"
 
 namespace egopd::test {
@@ -17,5 +19,16 @@ inline double act_ref(Act act, double x) {
   }
   return x;
 }
+
+// Runs the kernels of path p while in scope, then the path that was in use before.
+struct KernelPathGuard {
+  KernelPath before = kernel_path();
+  explicit KernelPathGuard(KernelPath p) { set_kernel_path(p); }
+  ~KernelPathGuard() { set_kernel_path(before); }
+};
+
+// Every kernel path, for parameterised suites (paths the CPU lacks are skipped with a message).
+inline const KernelPath kAllKernelPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512};
+inline std::string kernel_path_test_name(KernelPath p) { return kernel_path_name(p); }
 
 }  // namespace egopd::test

@@ -1,4 +1,4 @@
-// GroupNorm, LayerNorm and softmax against double-precision references, on the portable and AVX2 paths.
+// GroupNorm, LayerNorm and softmax against double-precision references, on every kernel path.
 #include "core/kernels/norm.h"
 
 #include <gtest/gtest.h>
@@ -9,14 +9,11 @@
 #include <vector>
 
 #include "core/cpu.h"
+#include "core/kernel_reference.h"
 
 namespace egopd {
 namespace {
 
-struct PathGuard {
-  explicit PathGuard(bool portable) { set_force_portable(portable); }
-  ~PathGuard() { set_force_portable(false); }
-};
 
 std::vector<float> normal_values(size_t n, float mean, float stddev, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -84,12 +81,12 @@ TEST(GroupNorm, AwkwardShapesBothPaths) {
       {2, 1, 64, 37, 32},      // per-frame 4-D, odd s (tails of 8)
       {1, 4, 16, 64, 2, 100.0f, 1.0f},  // large mean relative to the spread
   };
-  for (bool portable : {true, false}) {
-    PathGuard guard(portable);
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
     for (const GnCase& g : cases)
       for (int variant = 0; variant < 4; ++variant) {
         const bool silu = variant & 1, affine = variant & 2;
-        SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " batch=" << g.batch << " frames="
+        SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " batch=" << g.batch << " frames="
                                         << g.frames << " c=" << g.c << " s=" << g.s << " groups=" << g.groups
                                         << " silu=" << silu << " affine=" << affine);
         check_group_norm(g, silu, affine, false);
@@ -98,9 +95,9 @@ TEST(GroupNorm, AwkwardShapesBothPaths) {
 }
 
 TEST(GroupNorm, InPlaceAndLargeVideo) {
-  for (bool portable : {true, false}) {
-    PathGuard guard(portable);
-    SCOPED_TRACE(portable ? "portable" : "avx2");
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
+    SCOPED_TRACE(kernel_path_name(path));
     check_group_norm({2, 3, 10, 7, 5}, true, true, true);
     check_group_norm({1, 16, 32, 256, 8}, true, true, false);  // big enough to run in parallel
   }
@@ -138,16 +135,16 @@ void check_layer_norm(int64_t rows, int64_t c, bool affine, bool in_place, float
 }
 
 TEST(LayerNorm, AwkwardWidthsBothPaths) {
-  for (bool portable : {true, false}) {
-    PathGuard guard(portable);
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
     for (int64_t c : {1, 3, 7, 8, 13, 33, 320, 1024, 1281})
       for (int variant = 0; variant < 4; ++variant) {
         const bool affine = variant & 1, in_place = variant & 2;
-        SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " c=" << c << " affine=" << affine
+        SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " c=" << c << " affine=" << affine
                                         << " in_place=" << in_place);
         check_layer_norm(3, c, affine, in_place, 0.0f);
       }
-    SCOPED_TRACE(portable ? "portable" : "avx2");
+    SCOPED_TRACE(kernel_path_name(path));
     check_layer_norm(5, 77, true, false, 50.0f);     // offset mean
     check_layer_norm(5, 1281, true, false, 50.0f);   // offset mean over a wide row
     check_layer_norm(3, 1281, false, false, 1000.0f);
@@ -156,10 +153,10 @@ TEST(LayerNorm, AwkwardWidthsBothPaths) {
 }
 
 TEST(Softmax, RowsWithMasksAndLargeValues) {
-  for (bool portable : {true, false}) {
-    PathGuard guard(portable);
+  for (KernelPath path : supported_kernel_paths()) {
+    test::KernelPathGuard guard(path);
     for (int64_t cols : {1, 5, 8, 17, 77, 1030}) {
-      SCOPED_TRACE(testing::Message() << (portable ? "portable" : "avx2") << " cols=" << cols);
+      SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " cols=" << cols);
       const int64_t rows = cols > 100 ? 40 : 4;
       std::vector<float> x = normal_values(rows * cols, 0.0f, 3.0f, 31 + static_cast<uint32_t>(cols));
       for (int64_t j = 0; j < cols; ++j) x[cols + j] += 1000.0f;                   // row 1: exp would overflow

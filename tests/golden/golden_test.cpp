@@ -1,6 +1,6 @@
 // Every golden case in tests/data/golden runs through the same runner `egopd forward` uses and is compared with
 // its expected outputs exactly as compare.py does (max_abs and rel_l2 within the case's tolerance; ids exact),
-// at 1 and at 2 threads.
+// on every kernel path this CPU supports, at 1 and at 2 threads.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/cpu.h"
 #include "core/golden.h"
 #include "core/threading.h"
 #include "pipeline/case_registry.h"
@@ -32,7 +33,7 @@ std::vector<std::string> case_dirs() {
 
 class GoldenCaseTest : public ::testing::TestWithParam<std::string> {};
 
-TEST_P(GoldenCaseTest, MatchesExpectedAtOneAndTwoThreads) {
+TEST_P(GoldenCaseTest, MatchesExpectedOnEveryKernelPathAtOneAndTwoThreads) {
   const std::string dir = (fs::path(EGOPD_TEST_DATA) / "data" / "golden" / GetParam()).string();
   GoldenCase c = load_golden_case(dir);
   CaseRunner run = find_case_runner(c.component);
@@ -40,15 +41,19 @@ TEST_P(GoldenCaseTest, MatchesExpectedAtOneAndTwoThreads) {
     ASSERT_TRUE(kPendingComponents.count(c.component)) << "no runner for component " << c.component;
     GTEST_SKIP() << "component " << c.component << " is not implemented yet";
   }
-  for (int threads : {1, 2}) {
-    set_num_threads(threads);
-    CaseOutputs out = run(c);
-    for (const auto& r : compare_case_outputs(c, out)) {
-      EXPECT_TRUE(r.ok) << c.name << " (" << threads << " threads): " << r.name << " max_abs " << r.max_abs
-                        << " (tol " << r.tol_max_abs << ") rel_l2 " << r.rel_l2 << " (tol " << r.tol_rel_l2 << ") "
-                        << r.message;
+  const KernelPath before = kernel_path();
+  for (KernelPath path : supported_kernel_paths())
+    for (int threads : {1, 2}) {
+      set_kernel_path(path);
+      set_num_threads(threads);
+      CaseOutputs out = run(c);
+      for (const auto& r : compare_case_outputs(c, out)) {
+        EXPECT_TRUE(r.ok) << c.name << " (" << kernel_path_name(path) << ", " << threads << " threads): " << r.name
+                          << " max_abs " << r.max_abs << " (tol " << r.tol_max_abs << ") rel_l2 " << r.rel_l2
+                          << " (tol " << r.tol_rel_l2 << ") " << r.message;
+      }
     }
-  }
+  set_kernel_path(before);
   set_num_threads(0);
 }
 

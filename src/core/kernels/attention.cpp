@@ -12,7 +12,7 @@
 
 namespace egopd {
 
-namespace avx2 {  // attention_avx2.cpp
+namespace avx2 {  // avx2/attention.cpp
 int64_t attention_tile_queries();
 int64_t attention_tile_workspace(int64_t dh);
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);

@@ -6,14 +6,12 @@
 #include <algorithm>
 #include <string>
 
-#include "core/cpu.h"
 #include "core/error.h"
 #include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
 
 namespace egopd {
 
-using gemm_detail::NR;
 
 namespace {
 
@@ -35,18 +33,13 @@ struct Im2colB : gemm_detail::BSource {
     shift = g.stride_h == 1 && g.stride_w == 1 && ow == w && g.kh * g.kw <= conv_detail::kMaxTaps;
   }
 
-  void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override {
+  void pack(const gemm_detail::GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+            float* dst) const override {
     const float* xf = x + seg * g.cin * h * w;
-    if (shift) {
-      conv_detail::ShiftGeom sg{h, w, g.kh, g.kw, g.pad_h, g.pad_w};
-      if (use_avx2())
-        conv_detail::pack_im2col_shift_avx2(xf, sg, k0, kc, n0, nr, dst);
-      else
-        conv_detail::pack_im2col_shift_portable(xf, sg, k0, kc, n0, nr, dst);
-      return;
-    }
+    if (shift) return path.pack_im2col_shift(xf, {h, w, g.kh, g.kw, g.pad_h, g.pad_w}, k0, kc, n0, nr, dst);
     // General geometry (strided, patch embedding): per-column input origin, then one gather per element.
-    int64_t iy0[NR], ix0[NR];
+    const int NR = path.nr;
+    int64_t iy0[gemm_detail::kMaxNR], ix0[gemm_detail::kMaxNR];
     for (int j = 0; j < nr; ++j) {
       const int64_t n = n0 + j;
       iy0[j] = (n / ow) * g.stride_h - g.pad_h;
@@ -75,21 +68,21 @@ struct TemporalA : gemm_detail::ASource {
   Operand wt;
   int64_t cin, tap0;
   TemporalA(const Operand& w, int64_t cin_, int64_t tap0_) : wt(w), cin(cin_), tap0(tap0_) {}
-  void pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override {
-    using gemm_detail::MR;
-    const bool fast = mr == MR && wt.dtype != DType::I8 && use_avx2();
+  void pack(const gemm_detail::GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc,
+            float* dst) const override {
+    const int MR = path.mr;
+    const bool fast = mr == MR && wt.dtype != DType::I8 && path.pack_a_temporal;
     for (int64_t k = k0; k < k0 + kc;) {  // one run per tap
       const int64_t tap = tap0 + k / cin, c = k % cin, run = std::min(k0 + kc, (k / cin + 1) * cin) - k;
       float* d = dst + (k - k0) * MR;
-      const int64_t done = fast ? conv_detail::pack_a_temporal6_avx2(wt.data, wt.dtype, cin, m0, tap, c, run, d) : 0;
-      pack_scalar(m0, mr, tap, c + done, run - done, d + done * MR);
+      const int64_t done = fast ? path.pack_a_temporal(wt.data, wt.dtype, cin, m0, tap, c, run, d) : 0;
+      pack_scalar(MR, m0, mr, tap, c + done, run - done, d + done * MR);
       k += run;
     }
   }
 
   // dst[k*MR + i] = W[m0 + i, c0 + k, tap] for k < len (rows >= mr zero).
-  void pack_scalar(int64_t m0, int mr, int64_t tap, int64_t c0, int64_t len, float* dst) const {
-    using gemm_detail::MR;
+  void pack_scalar(int MR, int64_t m0, int mr, int64_t tap, int64_t c0, int64_t len, float* dst) const {
     const size_t es = dtype_size(wt.dtype);
     for (int i = 0; i < MR; ++i) {
       if (i >= mr) {
@@ -121,8 +114,10 @@ struct TemporalB : gemm_detail::BSource {
   int64_t f, cin, hw, tap0;
   TemporalB(const float* x_, int64_t f_, int64_t cin_, int64_t hw_, int64_t tap0_)
       : x(x_), f(f_), cin(cin_), hw(hw_), tap0(tap0_) {}
-  void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override {
+  void pack(const gemm_detail::GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+            float* dst) const override {
     const int64_t t = seg % f;
+    const int NR = path.nr;
     for (int64_t k = k0; k < k0 + kc;) {
       const int64_t tap = tap0 + k / cin;
       const int64_t run = std::min(k0 + kc, (k / cin + 1) * cin) - k;  // rows of this tap in the block
@@ -132,10 +127,7 @@ struct TemporalB : gemm_detail::BSource {
         std::fill(d, d + run * NR, 0.0f);
       } else {
         const float* p = x + ((seg + tap - 1) * cin + k % cin) * hw + n0;
-        if (use_avx2())
-          gemm_detail::pack_b_avx2(p, DType::F32, hw, false, nullptr, run, nr, d);
-        else
-          gemm_detail::pack_b_portable(p, DType::F32, hw, false, nullptr, run, nr, d);
+        path.pack_b(p, DType::F32, hw, false, nullptr, run, nr, d);
       }
       k += run;
     }
@@ -146,15 +138,15 @@ struct TemporalB : gemm_detail::BSource {
 
 namespace conv_detail {
 
-void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks) {
+void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint32_t* masks) {
   // Validity factors into a row part (ky) and a column part (kx): bit j of rows[ky] / cols[kx].
-  uint16_t rows[kMaxTaps] = {}, cols[kMaxTaps] = {};
+  uint32_t rows[kMaxTaps] = {}, cols[kMaxTaps] = {};
   int64_t oy = n0 / s.w, ox = n0 % s.w;
   for (int j = 0; j < nr; ++j) {
     for (int64_t ky = 0; ky < s.kh; ++ky)
-      if (oy + ky - s.ph >= 0 && oy + ky - s.ph < s.h) rows[ky] |= uint16_t(1u << j);
+      if (oy + ky - s.ph >= 0 && oy + ky - s.ph < s.h) rows[ky] |= 1u << j;
     for (int64_t kx = 0; kx < s.kw; ++kx)
-      if (ox + kx - s.pw >= 0 && ox + kx - s.pw < s.w) cols[kx] |= uint16_t(1u << j);
+      if (ox + kx - s.pw >= 0 && ox + kx - s.pw < s.w) cols[kx] |= 1u << j;
     if (++ox == s.w) ox = 0, ++oy;
   }
   for (int64_t ky = 0; ky < s.kh; ++ky)
@@ -163,7 +155,8 @@ void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks) {
 
 void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                                 float* dst) {
-  uint16_t masks[kMaxTaps];
+  constexpr int NR = gemm_detail::kNrPortable;
+  uint32_t masks[kMaxTaps];
   shift_masks(s, n0, nr, masks);
   const int64_t taps = s.kh * s.kw;
   int64_t c = k0 / taps, tap = k0 % taps;

@@ -13,14 +13,17 @@ struct ShiftGeom {
   int64_t h, w, kh, kw, ph, pw;
 };
 
-// masks[ky*kw + kx] bit j: column n0 + j (j < nr) reads inside the frame for that tap.
-void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint16_t* masks);
+// masks[ky*kw + kx] bit j: column n0 + j (j < nr <= 32) reads inside the frame for that tap.
+void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint32_t* masks);
 
-// dst[k*16 + j] = col(k0 + k, n0 + j) of frame xf [cin, h, w]; columns >= nr are zero.
+// dst[k*NR + j] = col(k0 + k, n0 + j) of frame xf [cin, h, w]; columns >= nr are zero. NR is the path's: 16 for
+// portable and avx2, 32 for avx512.
 void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                                 float* dst);
 void pack_im2col_shift_avx2(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                             float* dst);
+void pack_im2col_shift_avx512(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
+                              float* dst);
 
 // Temporal conv weight W [cout, cin, 3] (F32/F16/BF16): 6 rows m0.. of the A micro-panel for the columns of one
 // tap, dst[k*6 + i] = W[m0 + i, c0 + k, tap] for k < len. Returns the k handled (a multiple of 8; the caller

@@ -11,7 +11,7 @@
 
 namespace egopd {
 
-namespace avx2 {  // elementwise_avx2.cpp: serial kernels on contiguous spans
+namespace avx2 {  // avx2/elementwise.cpp: serial kernels on contiguous spans
 void silu_inplace(float* x, int64_t n);
 void gelu_inplace(float* x, int64_t n);
 void quick_gelu_inplace(float* x, int64_t n);

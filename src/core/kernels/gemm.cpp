@@ -12,7 +12,6 @@
 #include <cstdlib>
 #include <vector>
 
-#include "core/cpu.h"
 #include "core/error.h"
 #include "core/kernels/gemm_internal.h"
 #include "core/threading.h"
@@ -32,11 +31,6 @@ float apply_act(Act act, float x) {
 namespace gemm_detail {
 namespace {
 
-// Block sizes for a core with 48 KB L1d, 1 MB L2 and a shared L3: a KC x NR B micro-panel (24 KB) stays in L1,
-// an MC x KC A block (288 KB) in L2, the KC x NC B block (3 MB) in L3.
-constexpr int64_t kKcMax = 384;
-constexpr int64_t kMcMax = 192;
-constexpr int64_t kNcMax = 2048;
 constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
 
 // Grow-only 64-byte aligned scratch, one per thread (OpenMP threads persist, so it is allocated once).
@@ -87,11 +81,14 @@ void run_gemm_via_temp(const GemmJob& job) {
 void run_gemm(const GemmJob& job) {
   const int64_t M = job.M, K = job.K;
   if (M <= 0 || job.segments <= 0 || job.seg_cols <= 0) return;
+  const GemmPath& path = gemm_path();
+  const int MR = path.mr, NR = path.nr;
+  const int64_t kKcMax = path.kc, kMcMax = path.mc, kNcMax = path.nc;
   const int64_t npc = std::max<int64_t>(1, ceil_div(K, kKcMax));
   const int64_t kc_blk = K > 0 ? ceil_div(K, npc) : 0;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
 
-  const MicroKernel uk = use_avx2() ? microkernel_avx2 : microkernel_portable;
+  const MicroKernel uk = path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
   const int64_t npanels = job.segments * panels_per_seg;
   const int64_t njc = ceil_div(npanels * NR, kNcMax);
@@ -108,7 +105,7 @@ void run_gemm(const GemmJob& job) {
   const bool split_m = npanels < int64_t(threads) * 4 && mpanels >= npanels;
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
-  const bool direct_a = job.a->direct != nullptr;
+  const bool direct_a = job.a->direct != nullptr && path.a_in_place;
   // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
   // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
   // with the size of the column block).
@@ -154,7 +151,7 @@ void run_gemm(const GemmJob& job) {
         for (int64_t p = pk_lo; p < pk_hi; ++p) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-          job.b->pack(seg, k0, kc, n0, nr, b_pack + panel_slot(p) * kc_blk * NR);
+          job.b->pack(path, seg, k0, kc, n0, nr, b_pack + panel_slot(p) * kc_blk * NR);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -172,7 +169,7 @@ void run_gemm(const GemmJob& job) {
           const int64_t ic = chunk * chunk_rows, mc = std::min(chunk_rows, M - ic);
           if (!direct_a)
             for (int64_t ir = 0; ir < mc; ir += MR)
-              job.a->pack(ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
+              job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
@@ -202,22 +199,17 @@ OperandA::OperandA(const Operand& o) : op(o) {
   }
 }
 
-void OperandA::pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
+void OperandA::pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
   const int64_t off = op.trans ? k0 * op.ld + m0 : m0 * op.ld + k0;
   const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  if (use_avx2())
-    pack_a_avx2(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
-  else
-    pack_a_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
+  path.pack_a(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
 }
 
-void OperandB::pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const {
+void OperandB::pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                    float* dst) const {
   const int64_t off = seg * seg_stride + (op.trans ? n0 * op.ld + k0 : k0 * op.ld + n0);
   const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  if (use_avx2())
-    pack_b_avx2(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
-  else
-    pack_b_portable(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
+  path.pack_b(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
 }
 
 }  // namespace gemm_detail

@@ -8,12 +8,20 @@
 //   C tile: MR x NR, row-major with row stride ldc.
 #include <cstdint>
 
+#include "core/cpu.h"
 #include "core/kernels/gemm.h"
+
+namespace egopd::conv_detail {
+struct ShiftGeom;
+}
 
 namespace egopd::gemm_detail {
 
-constexpr int MR = 6;   // micro-tile rows (6 x 16 = 12 ymm accumulators)
-constexpr int NR = 16;  // micro-tile columns
+// Micro-tile rows (MR) and columns (NR) of each path; packed panels are MR rows of A / NR columns of B wide.
+constexpr int kMrPortable = 6, kNrPortable = 16;
+constexpr int kMrAvx2 = 6, kNrAvx2 = 16;     // 12 ymm accumulators
+constexpr int kMrAvx512 = 12, kNrAvx512 = 32;  // 24 zmm accumulators: 2 B loads and 12 broadcasts per 24 FMAs
+constexpr int kMaxNR = 32;
 
 // What the micro-kernel does with its MR x NR sum S when storing it to C:
 //   C = act(S + (load_c ? C : 0) + bias) + (add_after ? C : 0), then only the mr x nr valid part is stored.
@@ -29,13 +37,45 @@ struct TileEpilogue {
 // (a_rs = lda, a_cs = 1). Rows >= mr are never read.
 using MicroKernel = void (*)(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+// Packing of A: dst[k*MR + i] = A(i, k) (* scale[i]) for i < mr, 0 for mr <= i < MR (MR of the path).
+// `p` points at element (m0, k0) of the operand, A(i, k) = p[i*ld + k], or p[k*ld + i] when trans.
+using PackA = void (*)(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                       float* dst);
+// Packing of B: dst[k*NR + j] = B(k, j) (* scale[j]) for j < nr, 0 for nr <= j < NR (NR of the path).
+// B(k, j) = p[k*ld + j], or p[j*ld + k] when trans.
+using PackB = void (*)(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                       float* dst);
+
+// One kernel path of the GEMM engine: its micro-kernel and packers, and the blocking derived from the CPU's
+// caches (gemm_paths.cpp). The convolution packers of the same path are in conv_internal.h.
+struct GemmPath {
+  int mr = 6;                  // micro-tile rows (A panels are packed mr rows at a time)
+  int nr = 16;                 // micro-tile columns (B panels are packed nr columns at a time)
+  MicroKernel micro = nullptr;
+  bool a_in_place = false;     // the micro-kernel reads F32 row-major A in place (a_rs = lda, a_cs = 1)
+  PackA pack_a = nullptr;
+  PackB pack_b = nullptr;
+  // Convolution packers (conv_internal.h): implicit im2col of a stride-1 frame, and the A panels of a temporal
+  // convolution's weight for one tap (null: the generic scalar packing).
+  void (*pack_im2col_shift)(const float* xf, const conv_detail::ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0,
+                            int nr, float* dst) = nullptr;
+  int64_t (*pack_a_temporal)(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
+                             int64_t len, float* dst) = nullptr;
+  int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
+  int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
+  int64_t nc = 2048;  // columns of a B block shared by the team
+};
+// The GEMM path of kernel_path(), and of any supported path (tests and benchmarks).
+const GemmPath& gemm_path();
+const GemmPath& gemm_path(KernelPath p);
 
 void microkernel_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                           int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
                       int mr, int nr, const TileEpilogue& ep);
-
-// Scalar epilogue of one tile from an MR x NR sum (row stride NR); shared by both paths for partial tiles.
+void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                        int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+// Scalar epilogue of one tile from an MR x 16 sum (row stride 16); the portable and AVX2 paths' partial tiles.
 void store_tile_scalar(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 
 // Source of the A operand [M, K]: in place (F32 row-major) or packed MR rows at a time.
@@ -43,16 +83,17 @@ struct ASource {
   const float* direct = nullptr;  // non-null: F32 row-major with row stride lda, read in place
   int64_t lda = 0;
   virtual ~ASource() = default;
-  // dst[k*MR + i] = A(m0 + i, k0 + k) for i < mr, 0 for mr <= i < MR.
-  virtual void pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {}
+  // dst[k*MR + i] = A(m0 + i, k0 + k) for i < mr, 0 for mr <= i < MR, with the MR and packers of `path`.
+  virtual void pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const = 0;
 };
 
 // Source of the B operand: `segments` independent column ranges of width seg_cols that share A (frames of a
 // convolution); the output of segment s starts at C + s * c_seg_stride.
 struct BSource {
   virtual ~BSource() = default;
-  // dst[k*NR + j] = B_seg(k0 + k, n0 + j) for j < nr, 0 for nr <= j < NR.
-  virtual void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const = 0;
+  // dst[k*NR + j] = B_seg(k0 + k, n0 + j) for j < nr, 0 for nr <= j < NR, with the NR and packers of `path`.
+  virtual void pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                    float* dst) const = 0;
 };
 
 struct GemmJob {
@@ -72,25 +113,31 @@ void run_gemm(const GemmJob& job);
 struct OperandA : ASource {
   Operand op;
   explicit OperandA(const Operand& o);
-  void pack(int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
+  void pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
 };
 struct OperandB : BSource {
   Operand op;
   int64_t seg_stride = 0;  // elements between segments (0 for a single matrix)
   explicit OperandB(const Operand& o, int64_t seg_stride_elems = 0) : op(o), seg_stride(seg_stride_elems) {}
-  void pack(int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override;
+  void pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+            float* dst) const override;
 };
 
-// Packing primitives. `p` points at element (k0, n0) / (m0, k0) of the operand, already offset.
-// Portable: any dtype; I8 multiplies by scale (already offset to the first output channel).
+// Packing primitives of each path (PackA / PackB contracts above). I8 multiplies by scale (already offset to the
+// first output channel). The SIMD ones hand partial panels and K tails to the portable ones.
+template <int NR>
 void pack_b_portable(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                      float* dst);
+template <int MR>
 void pack_a_portable(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                      float* dst);
-// AVX2/F16C versions (same contract; partial panels and K tails go to the portable ones).
 void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                  float* dst);
 void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                  float* dst);
+void pack_b_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                   float* dst);
+void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                   float* dst);
 
 }  // namespace egopd::gemm_detail

@@ -11,7 +11,7 @@
 
 namespace egopd {
 
-namespace avx2 {  // norm_avx2.cpp
+namespace avx2 {  // avx2/norm.cpp
 void shifted_sums(const float* x, int64_t n, double shift, double* sum, double* sumsq);
 void affine_span(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);
 void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps);

@@ -1,4 +1,5 @@
-// Portable micro-kernel, tile epilogue and packing (any x86-64; also the reference path of the AVX2 one).
+// Portable micro-kernel, tile epilogue and packing (any CPU; also what the SIMD paths fall back to for partial
+// panels).
 #include <algorithm>
 #include <cstring>
 
@@ -23,6 +24,7 @@ inline float load_elem(const void* p, DType dt, int64_t idx) {
 }  // namespace
 
 void store_tile_scalar(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  constexpr int NR = 16;
   for (int i = 0; i < mr; ++i) {
     float* ci = c + i * ldc;
     const float brow = ep.bias_row ? ep.bias_row[i] : 0.0f;
@@ -40,6 +42,7 @@ void store_tile_scalar(const float* sum, float* c, int64_t ldc, int mr, int nr, 
 
 void microkernel_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                           int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  constexpr int MR = kMrPortable, NR = kNrPortable;
   float acc[MR * NR] = {};
   const float* row[MR];
   for (int i = 0; i < MR; ++i) row[i] = a + std::min(i, mr - 1) * a_rs;  // rows >= mr: computed, never stored
@@ -53,6 +56,7 @@ void microkernel_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs
   store_tile_scalar(acc, c, ldc, mr, nr, ep);
 }
 
+template <int NR>
 void pack_b_portable(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                      float* dst) {
   for (int64_t k = 0; k < kc; ++k) {
@@ -65,6 +69,7 @@ void pack_b_portable(const void* p, DType dt, int64_t ld, bool trans, const floa
   }
 }
 
+template <int MR>
 void pack_a_portable(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                      float* dst) {
   for (int64_t k = 0; k < kc; ++k) {
@@ -76,5 +81,11 @@ void pack_a_portable(const void* p, DType dt, int64_t ld, bool trans, const floa
     for (int i = mr; i < MR; ++i) d[i] = 0.0f;
   }
 }
+
+template void pack_b_portable<16>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
+template void pack_b_portable<32>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
+template void pack_a_portable<kMrPortable>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
+template void pack_a_portable<kMrAvx512>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
+static_assert(kNrPortable == 16 && kNrAvx2 == 16 && kNrAvx512 == 32, "instantiate pack_b_portable for each NR");
 
 }  // namespace egopd::gemm_detail

@@ -1,5 +1,5 @@
 // AVX2/FMA/F16C micro-kernel (6 x 16, 12 ymm accumulators) and packing with on-the-fly F16/BF16 conversion.
-// Only called after egopd::use_avx2(); everything below the pragma is plain static code (no library inlines).
+// Only reached through the avx2 and avx512 kernel paths; everything below the pragma is plain static code (no library inlines).
 #include <cstdint>
 
 #include "core/kernels/gemm_internal.h"
@@ -7,13 +7,14 @@
 #pragma GCC target("avx2,fma,f16c")
 #include <immintrin.h>
 
-#include "core/kernels/gemm_avx2_pack.h"
-#include "core/kernels/vec_math_avx2.h"
+#include "core/kernels/avx2/pack.h"
+#include "core/kernels/avx2/vec_math.h"
 
 namespace egopd::gemm_detail {
 
 namespace {
 
+constexpr int MR = kMrAvx2, NR = kNrAvx2;
 constexpr int kPrefetchB = 16;  // k steps ahead (~100 cycles)
 
 // ---- micro-kernel -------------------------------------------------------------------------------------------
@@ -233,7 +234,7 @@ int64_t elem_size(DType dt) { return dt == DType::F32 ? 4 : dt == DType::I8 ? 1 
 
 void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                  float* dst) {
-  if (nr != NR || !packable(dt)) return pack_b_portable(p, dt, ld, trans, scale, kc, nr, dst);
+  if (nr != NR || !packable(dt)) return pack_b_portable<NR>(p, dt, ld, trans, scale, kc, nr, dst);
   if (!trans) {
     switch (dt) {
       case DType::F32: return pack_b_rows16(p, DType::F32, ld, nullptr, kc, dst);
@@ -250,13 +251,13 @@ void pack_b_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* s
     default: done = pack_b_cols16(p, DType::I8, ld, scale, kc, dst); break;
   }
   if (done < kc)
-    pack_b_portable(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, true, scale, kc - done, nr,
+    pack_b_portable<NR>(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, true, scale, kc - done, nr,
                     dst + done * NR);
 }
 
 void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                  float* dst) {
-  if (trans || mr != MR || !packable(dt)) return pack_a_portable(p, dt, ld, trans, scale, mr, kc, dst);
+  if (trans || mr != MR || !packable(dt)) return pack_a_portable<MR>(p, dt, ld, trans, scale, mr, kc, dst);
   int64_t done;
   switch (dt) {
     case DType::F32: done = pack_a_rows6(p, DType::F32, ld, nullptr, kc, dst); break;
@@ -265,7 +266,7 @@ void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* s
     default: done = pack_a_rows6(p, DType::I8, ld, scale, kc, dst); break;
   }
   if (done < kc)
-    pack_a_portable(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, false, scale, mr, kc - done,
+    pack_a_portable<MR>(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, false, scale, mr, kc - done,
                     dst + done * MR);
 }
 

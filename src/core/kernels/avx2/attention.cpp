@@ -11,7 +11,7 @@
 #include <immintrin.h>
 
 #include "core/kernels/attention.h"
-#include "core/kernels/vec_math_avx2.h"
+#include "core/kernels/avx2/vec_math.h"
 
 namespace egopd::avx2 {
 

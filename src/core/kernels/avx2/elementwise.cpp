@@ -4,7 +4,7 @@
 #pragma GCC target("avx2,fma,f16c")
 #include <immintrin.h>
 
-#include "core/kernels/vec_math_avx2.h"
+#include "core/kernels/avx2/vec_math.h"
 
 namespace egopd::avx2 {
 

@@ -1,7 +1,7 @@
 #pragma once
-// Register-level packing helpers shared by the AVX2 GEMM and convolution files. Include ONLY from *_avx2.cpp,
-// after `#pragma GCC target("avx2,fma,f16c")` and <immintrin.h> (core/dtype.h included before the pragma);
-// everything is static (one private copy per file).
+// Register-level packing helpers shared by the AVX2 and AVX-512 GEMM and convolution files. Include ONLY from
+// kernels/avx2/ and kernels/avx512/, after a `#pragma GCC target` enabling at least avx2,fma,f16c and <immintrin.h>
+// (core/dtype.h included before the pragma); everything is static (one private copy per file).
 #include <immintrin.h>
 
 namespace egopd::pack_avx2 {

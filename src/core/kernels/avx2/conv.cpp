@@ -7,13 +7,13 @@
 #pragma GCC target("avx2,fma,f16c")
 #include <immintrin.h>
 
-#include "core/kernels/gemm_avx2_pack.h"
+#include "core/kernels/avx2/pack.h"
 
 namespace egopd::conv_detail {
 
 void pack_im2col_shift_avx2(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                             float* dst) {
-  uint16_t masks[kMaxTaps];
+  uint32_t masks[kMaxTaps];
   shift_masks(s, n0, nr, masks);
   const int64_t taps = s.kh * s.kw;
   __m256i lo[kMaxTaps], hi[kMaxTaps];

@@ -1,6 +1,7 @@
 #pragma once
 // Vectorised float32 math for AVX2/FMA kernels: exp, erf, 1+erf, SiLU, GELU, horizontal reductions.
-// Include ONLY from *_avx2.cpp files, after `#pragma GCC target("avx2,fma,f16c")` and <immintrin.h>.
+// Include ONLY from kernels/avx2/ and kernels/avx512/, after a `#pragma GCC target` enabling at least
+// avx2,fma,f16c and <immintrin.h>.
 // Every function is `static inline` so each AVX2 translation unit gets its own internal copy (nothing leaks
 // into portable code). Polynomial coefficients are Chebyshev fits of the exact functions; accuracy (tested
 // against double precision): exp ~1 ulp, erf and 1+erf a few ulp relative over the whole float range.

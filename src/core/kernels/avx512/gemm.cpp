@@ -1,0 +1,239 @@
+// AVX-512 micro-kernel (12 x 32: twenty-four zmm accumulators; per k two B loads and twelve broadcast A elements
+// feed 24 FMAs) and packing with F16/BF16/I8 conversion in registers. Partial tiles use masked loads and stores (no
+// scalar tails). Only reached through the avx512 kernel path; everything below the pragma is plain static code.
+#include <algorithm>
+#include <cstdint>
+
+#include "core/kernels/gemm_internal.h"
+
+#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
+#include <immintrin.h>
+
+#include "core/kernels/avx2/pack.h"
+#include "core/kernels/avx2/vec_math.h"
+
+namespace egopd::gemm_detail {
+
+namespace {
+
+constexpr int MR = kMrAvx512, NR = kNrAvx512;
+constexpr int kPrefetchB = 8;  // k steps ahead
+
+__mmask16 lanes(int n) { return n <= 0 ? __mmask16(0) : n >= 16 ? __mmask16(0xffff) : __mmask16((1u << n) - 1u); }
+
+// The activations of the AVX2 path on both halves: the same polynomials, so both paths round alike.
+inline __m512 act_ps(Act act, __m512 v) {
+  __m256 lo = _mm512_castps512_ps256(v), hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
+  switch (act) {
+    case Act::SiLU: lo = vmath::silu_ps(lo), hi = vmath::silu_ps(hi); break;
+    case Act::GELU: lo = vmath::gelu_ps(lo), hi = vmath::gelu_ps(hi); break;
+    case Act::QuickGELU: lo = vmath::x_sigmoid_ps(lo, 1.702f), hi = vmath::x_sigmoid_ps(hi, 1.702f); break;
+    default: return v;
+  }
+  return _mm512_insertf32x8(_mm512_castps256_ps512(lo), hi, 1);
+}
+
+// 16 columns of row i of the tile (mask m of the valid ones): C = act(v + C_old? + bias) + C_old?.
+inline void store16(float* c, const float* bias_col, __m512 v, int i, __mmask16 m, const TileEpilogue& ep) {
+  if (!m) return;
+  __m512 old = _mm512_setzero_ps();
+  if (ep.load_c || ep.add_after) old = _mm512_maskz_loadu_ps(m, c);
+  if (ep.load_c) v = _mm512_add_ps(v, old);
+  if (ep.bias_row) v = _mm512_add_ps(v, _mm512_set1_ps(ep.bias_row[i]));
+  if (bias_col) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, bias_col));
+  if (ep.act != Act::None) v = act_ps(ep.act, v);
+  if (ep.add_after) v = _mm512_add_ps(v, old);
+  _mm512_mask_storeu_ps(c, m, v);
+}
+
+// Twenty-four named accumulators (an array of vectors would live in memory): row i of the tile is (c<i>0, c<i>1).
+#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7) X(8) X(9) X(10) X(11)
+#define EGOPD_DECLARE(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = _mm512_setzero_ps();
+#define EGOPD_FMA(i)                            \
+  {                                             \
+    const __m512 av = _mm512_set1_ps(A_AT(i));  \
+    c##i##0 = _mm512_fmadd_ps(av, b0, c##i##0); \
+    c##i##1 = _mm512_fmadd_ps(av, b1, c##i##1); \
+  }
+#define EGOPD_STORE(i)                                                                                 \
+  _mm512_store_ps(sum + (i) * NR, first ? c##i##0 : _mm512_add_ps(_mm512_load_ps(sum + (i) * NR), c##i##0)); \
+  _mm512_store_ps(sum + (i) * NR + 16,                                                                 \
+                  first ? c##i##1 : _mm512_add_ps(_mm512_load_ps(sum + (i) * NR + 16), c##i##1));
+
+// The k loop: over a packed A micro-panel (a[k*MR + i]), or over A in place (row i at a + i*lda, all MR rows
+// valid; two base pointers and the offsets 0..5 lda keep every address in registers). Writes the tile's sum
+// (row-major, MR x NR) when `first`, else adds to it.
+template <bool kInPlace>
+__attribute__((always_inline)) inline void k_loop(int64_t kc, const float* a, int64_t lda, const float* b,
+                                                  float* sum, bool first) {
+  EGOPD_ROWS(EGOPD_DECLARE)
+  const int64_t l2 = 2 * lda, l3 = 3 * lda, l4 = 4 * lda, l5 = 5 * lda;
+  const float* lo = a;            // rows 0-5
+  const float* hi = a + 6 * lda;  // rows 6-11
+  for (int64_t k = 0; k < kc; ++k) {
+    const __m512 b0 = _mm512_load_ps(b), b1 = _mm512_load_ps(b + 16);
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR), _MM_HINT_T0);
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR + 16), _MM_HINT_T0);
+    if constexpr (kInPlace) {
+      const int64_t off[6] = {0, lda, l2, l3, l4, l5};
+#define A_AT(i) ((i) < 6 ? lo[off[(i) % 6]] : hi[off[(i) % 6]])
+      EGOPD_ROWS(EGOPD_FMA)
+#undef A_AT
+      ++lo, ++hi;
+    } else {
+#define A_AT(i) a[(i)]
+      EGOPD_ROWS(EGOPD_FMA)
+#undef A_AT
+      a += MR;
+    }
+    b += NR;
+  }
+  EGOPD_ROWS(EGOPD_STORE)
+}
+
+#undef EGOPD_STORE
+#undef EGOPD_FMA
+#undef EGOPD_DECLARE
+#undef EGOPD_ROWS
+
+}  // namespace
+
+void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                        int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  if (ep.load_c || ep.add_after)  // the C tile is read after the loop: start fetching it now
+    for (int i = 0; i < mr; ++i) {
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc + 16), _MM_HINT_T0);
+    }
+  alignas(64) float sum[MR * NR];
+  if (a_rs == 1 && a_cs == MR) {
+    k_loop<false>(kc, a, 0, b, sum, true);
+  } else if (a_cs == 1 && mr == MR) {
+    k_loop<true>(kc, a, a_rs, b, sum, true);
+  } else {  // a partial row panel in place (the last of a matrix): pack it here, 128 k at a time
+    alignas(64) float panel[128 * MR];
+    for (int64_t k0 = 0; k0 < kc || k0 == 0; k0 += 128) {
+      const int64_t n = std::min<int64_t>(128, kc - k0);
+      for (int64_t k = 0; k < n; ++k)
+        for (int i = 0; i < MR; ++i) panel[k * MR + i] = i < mr ? a[i * a_rs + (k0 + k) * a_cs] : 0.0f;
+      k_loop<false>(n, panel, 0, b + k0 * NR, sum, k0 == 0);
+    }
+  }
+  const __mmask16 m0 = lanes(nr), m1 = lanes(nr - 16);
+  const float* bias_col1 = ep.bias_col ? ep.bias_col + 16 : nullptr;
+  for (int i = 0; i < mr; ++i) {
+    store16(c + i * ldc, ep.bias_col, _mm512_load_ps(sum + i * NR), i, m0, ep);
+    store16(c + i * ldc + 16, bias_col1, _mm512_load_ps(sum + i * NR + 16), i, m1, ep);
+  }
+}
+
+// ---- packing --------------------------------------------------------------------------------------------------
+
+namespace {
+
+using pack_avx2::load8;
+using pack_avx2::transpose8;
+
+// 16 consecutive elements (those of mask m, the rest zero) as float32 (I8: before its scale).
+__attribute__((always_inline)) inline __m512 load16(const void* p, DType dt, int64_t idx, __mmask16 m) {
+  if (dt == DType::F32) return _mm512_maskz_loadu_ps(m, static_cast<const float*>(p) + idx);
+  if (dt == DType::I8)
+    return _mm512_cvtepi32_ps(_mm512_cvtepi8_epi32(_mm_maskz_loadu_epi8(m, static_cast<const int8_t*>(p) + idx)));
+  const __m256i h = _mm256_maskz_loadu_epi16(m, static_cast<const uint16_t*>(p) + idx);
+  if (dt == DType::F16) return _mm512_cvtph_ps(h);
+  return _mm512_castsi512_ps(_mm512_slli_epi32(_mm512_cvtepu16_epi32(h), 16));  // BF16
+}
+
+// dst[k*W + j] = p[k*ld + j] (* scale[j]) for j < n, 0 for n <= j < W: (masked) loads of consecutive lanes.
+template <int W>
+__attribute__((always_inline)) inline void pack_contiguous(const void* p, DType dt, int64_t ld, const float* scale,
+                                                           int64_t kc, int n, float* dst) {
+  constexpr int kChunks = (W + 15) / 16;
+  const int64_t es = dt == DType::F32 ? 4 : dt == DType::I8 ? 1 : 2;
+  __mmask16 in[kChunks], out[kChunks];
+  __m512 s[kChunks];
+  for (int q = 0; q < kChunks; ++q) {
+    in[q] = lanes(n - 16 * q);
+    out[q] = lanes(W - 16 * q);
+    s[q] = scale ? _mm512_maskz_loadu_ps(in[q], scale + 16 * q) : _mm512_set1_ps(1.0f);
+  }
+  for (int64_t k = 0; k < kc; ++k) {
+    // The next panel reads the following bytes of the same rows (one stream per row): fetch them into L2.
+    _mm_prefetch(static_cast<const char*>(p) + (k * ld + W) * es, _MM_HINT_T1);
+    for (int q = 0; q < kChunks; ++q) {
+      __m512 v = load16(p, dt, k * ld + 16 * q, in[q]);
+      if (scale) v = _mm512_mul_ps(v, s[q]);
+      _mm512_mask_storeu_ps(dst + k * W + 16 * q, out[q], v);
+    }
+  }
+}
+
+// dst[k*W + j] = p[j*ld + k] (* scale[j]), all W lanes valid: 8 x 8 register transposes of 8 lanes at a time;
+// returns the k handled (a multiple of 8).
+template <int W>
+__attribute__((always_inline)) inline int64_t pack_strided(const void* p, DType dt, int64_t ld, const float* scale,
+                                                           int64_t kc, float* dst) {
+  const int64_t k8 = kc / 8 * 8;
+  for (int64_t k = 0; k < k8; k += 8)
+    for (int g = 0; g < W; g += 8) {
+      const int rows = std::min(8, W - g);
+      __m256 r[8];
+      for (int j = 0; j < 8; ++j) {
+        r[j] = j < rows ? load8(p, dt, (g + j) * ld + k) : _mm256_setzero_ps();
+        if (scale && j < rows) r[j] = _mm256_mul_ps(r[j], _mm256_broadcast_ss(scale + g + j));
+      }
+      transpose8(r);
+      const __mmask8 m = __mmask8((1u << rows) - 1u);
+      for (int q = 0; q < 8; ++q) _mm256_mask_storeu_ps(dst + (k + q) * W + g, m, r[q]);
+    }
+  return k8;
+}
+
+bool packable(DType dt) { return dt == DType::F32 || dt == DType::F16 || dt == DType::BF16 || dt == DType::I8; }
+int64_t elem_size(DType dt) { return dt == DType::F32 ? 4 : dt == DType::I8 ? 1 : 2; }
+
+// A W-wide panel (B's columns, W = NR, or A's rows, W = MR). `contiguous`: the W lanes are consecutive in memory
+// (B not transposed, A transposed); otherwise each lane is its own row of length kc. `rest` packs the K tail of
+// the strided case (and partial panels of it) with the portable packer of the same contract.
+template <int W>
+void pack_panel(const void* p, DType dt, int64_t ld, bool contiguous, const float* scale, int64_t kc, int n,
+                float* dst, void (*rest)(const void*, DType, int64_t, const float*, int64_t, int, float*)) {
+  if (contiguous) {
+    switch (dt) {
+      case DType::F32: return pack_contiguous<W>(p, DType::F32, ld, nullptr, kc, n, dst);
+      case DType::F16: return pack_contiguous<W>(p, DType::F16, ld, nullptr, kc, n, dst);
+      case DType::BF16: return pack_contiguous<W>(p, DType::BF16, ld, nullptr, kc, n, dst);
+      default: return pack_contiguous<W>(p, DType::I8, ld, scale, kc, n, dst);
+    }
+  }
+  int64_t done = 0;
+  if (n == W) switch (dt) {
+      case DType::F32: done = pack_strided<W>(p, DType::F32, ld, nullptr, kc, dst); break;
+      case DType::F16: done = pack_strided<W>(p, DType::F16, ld, nullptr, kc, dst); break;
+      case DType::BF16: done = pack_strided<W>(p, DType::BF16, ld, nullptr, kc, dst); break;
+      default: done = pack_strided<W>(p, DType::I8, ld, scale, kc, dst); break;
+    }
+  if (done < kc) rest(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, scale, kc - done, n, dst + done * W);
+}
+
+}  // namespace
+
+void pack_b_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                   float* dst) {
+  if (!packable(dt)) return pack_b_portable<NR>(p, dt, ld, trans, scale, kc, nr, dst);
+  pack_panel<NR>(p, dt, ld, !trans, scale, kc, nr, dst,
+                 [](const void* q, DType t, int64_t l, const float* s, int64_t k, int n, float* d) {
+                   pack_b_portable<NR>(q, t, l, true, s, k, n, d);
+                 });
+}
+
+void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                   float* dst) {
+  if (!packable(dt)) return pack_a_portable<MR>(p, dt, ld, trans, scale, mr, kc, dst);
+  pack_panel<MR>(p, dt, ld, trans, scale, kc, mr, dst,
+                 [](const void* q, DType t, int64_t l, const float* s, int64_t k, int n, float* d) {
+                   pack_a_portable<MR>(q, t, l, false, s, n, k, d);
+                 });
+}
+
+}  // namespace egopd::gemm_detail

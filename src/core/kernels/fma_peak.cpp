@@ -1,0 +1,97 @@
+#include "core/kernels/fma_peak.h"
+
+#include <omp.h>
+
+#include <chrono>
+#include <map>
+#include <mutex>
+#include <utility>
+
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+namespace egopd {
+
+namespace {
+
+constexpr int kChains = 12;  // independent accumulators: more than FMA latency x FMA pipes on current cores
+
+#if defined(__x86_64__)
+__attribute__((target("avx512f"))) float fma_loop_avx512(int64_t iters) {
+  __m512 acc[kChains];
+  for (int i = 0; i < kChains; ++i) acc[i] = _mm512_set1_ps(float(i) * 1e-3f);
+  const __m512 m = _mm512_set1_ps(0.9999f), c = _mm512_set1_ps(1e-4f);
+  for (int64_t it = 0; it < iters; ++it) {
+#pragma GCC unroll 12
+    for (int i = 0; i < kChains; ++i) acc[i] = _mm512_fmadd_ps(acc[i], m, c);
+  }
+  __m512 s = acc[0];
+  for (int i = 1; i < kChains; ++i) s = _mm512_add_ps(s, acc[i]);
+  return _mm512_reduce_add_ps(s);
+}
+
+__attribute__((target("avx2,fma"))) float fma_loop_avx2(int64_t iters) {
+  __m256 acc[kChains];
+  for (int i = 0; i < kChains; ++i) acc[i] = _mm256_set1_ps(float(i) * 1e-3f);
+  const __m256 m = _mm256_set1_ps(0.9999f), c = _mm256_set1_ps(1e-4f);
+  for (int64_t it = 0; it < iters; ++it) {
+#pragma GCC unroll 12
+    for (int i = 0; i < kChains; ++i) acc[i] = _mm256_fmadd_ps(acc[i], m, c);
+  }
+  __m256 s = acc[0];
+  for (int i = 1; i < kChains; ++i) s = _mm256_add_ps(s, acc[i]);
+  alignas(32) float v[8];
+  _mm256_store_ps(v, s);
+  return v[0] + v[7];
+}
+#endif
+
+float fma_loop_scalar(int64_t iters) {
+  float acc[kChains];
+  for (int i = 0; i < kChains; ++i) acc[i] = float(i) * 1e-3f;
+  for (int64_t it = 0; it < iters; ++it)
+    for (int i = 0; i < kChains; ++i) acc[i] = __builtin_fmaf(acc[i], 0.9999f, 1e-4f);
+  float s = 0;
+  for (int i = 0; i < kChains; ++i) s += acc[i];
+  return s;
+}
+
+int lanes(KernelPath p) { return p == KernelPath::Avx512 ? 16 : p == KernelPath::Avx2 ? 8 : 1; }
+
+float run(KernelPath p, int64_t iters) {
+#if defined(__x86_64__)
+  if (p == KernelPath::Avx512) return fma_loop_avx512(iters);
+  if (p == KernelPath::Avx2) return fma_loop_avx2(iters);
+#endif
+  return fma_loop_scalar(iters);
+}
+
+double measure(KernelPath p, int threads) {
+  const int64_t iters = p == KernelPath::Portable ? 4'000'000 : 8'000'000;  // ~0.05-0.1 s at 3 GHz
+  volatile float sink = 0;
+  run(p, iters / 8);  // wake the vector units (and the clock) up
+  const auto t0 = std::chrono::steady_clock::now();
+#pragma omp parallel num_threads(threads)
+  {
+    const float r = run(p, iters);
+#pragma omp atomic
+    sink = sink + r;
+  }
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return 2.0 * kChains * lanes(p) * double(iters) * threads / s * 1e-9;
+}
+
+}  // namespace
+
+double measured_peak_gflops(KernelPath path, int threads) {
+  static std::mutex mu;
+  static std::map<std::pair<int, int>, double> cache;
+  std::lock_guard<std::mutex> lock(mu);
+  const auto key = std::make_pair(int(path), threads);
+  auto it = cache.find(key);
+  if (it == cache.end()) it = cache.emplace(key, measure(path, threads)).first;
+  return it->second;
+}
+
+}  // namespace egopd
