@@ -133,7 +133,7 @@ BatchSummary run_batch(const BatchOptions& o) {
                   c.id.c_str());
     const Clock::time_point t = Clock::now();
     try {
-      predict_clip(model, po, c.source(), dir, prefix);
+      predict_clip(model, po, c.source(), dir, stderr_hooks(prefix));
       fs::remove(failed_marker(o.out_dir, c.id), ec);
       ++sum.done;
       log_line("done %s (%lld/%lld) in %.1f s", c.id.c_str(), static_cast<long long>(k), static_cast<long long>(n),

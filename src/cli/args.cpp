@@ -128,15 +128,8 @@ int run_reporting_errors(const char* program, const std::function<int()>& body) 
   } catch (const Interrupted& e) {  // SIGINT/SIGTERM at a safe point: 130 / 143, as a shell reports a signal
     std::fprintf(stderr, "%s: %s\n", program, e.what());
     return e.exit_code();
-  } catch (const std::bad_alloc&) {
-    std::fprintf(stderr, "%s: out of memory\n", program);
-  } catch (const std::filesystem::filesystem_error& e) {  // the library's own wording, in our one-line form
-    std::fprintf(stderr, "%s: %s: %s\n", program, e.path1().empty() ? "file system" : e.path1().c_str(),
-                 e.code().message().c_str());
-  } catch (const nlohmann::json::exception& e) {  // never "[json.exception...]": JSON that reached no reader's check
-    std::fprintf(stderr, "%s: malformed or non-UTF-8 JSON data (JSON error %d)\n", program, e.id);
-  } catch (const std::exception& e) {  // egopd::Error and anything else: already one line
-    std::fprintf(stderr, "%s: %s\n", program, e.what());
+  } catch (...) {
+    std::fprintf(stderr, "%s: %s\n", program, current_exception_line().c_str());
   }
   return 1;
 }

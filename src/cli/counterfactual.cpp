@@ -8,7 +8,7 @@ int cmd_counterfactual(const Args& a) {
   const PredictOptions o = read_predict_options(a);
   const VarySpec vary = parse_vary(a.require("vary"));
   a.finish();
-  return run_counterfactual(o, vary);
+  return run_with_library(o, &vary);
 }
 
 }  // namespace egopd

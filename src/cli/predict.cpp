@@ -29,7 +29,7 @@ PredictOptions read_predict_options(const Args& a) {
 int cmd_predict(const Args& a) {
   const PredictOptions o = read_predict_options(a);
   a.finish();
-  return run_predict(o);
+  return run_with_library(o, nullptr);
 }
 
 }  // namespace egopd

@@ -11,6 +11,10 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& msg) : std::runtime_error(msg) {}
 };
 
+// The one-line message of the exception being handled (call inside a catch block): egopd::Error's own line, and
+// the same form for out-of-memory, file-system and JSON library errors. Used by the commands and the C API.
+std::string current_exception_line();
+
 // Internal invariant check (programming error, not bad input); still a clean one-line error, never UB.
 #define EGOPD_CHECK(cond, msg)                                                                        \
   do {                                                                                                \

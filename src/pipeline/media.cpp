@@ -6,6 +6,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <system_error>
 
 #include <opencv2/imgcodecs.hpp>
@@ -172,6 +173,20 @@ static LoadedClip load_video(const std::string& path, int64_t frames, int size) 
   return c;
 }
 
+LoadedClip clip_from_images(const std::vector<cv::Mat>& rgb, int64_t frames, int size) {
+  if (frames < 1) throw Error("--frames must be at least 1");
+  if (rgb.empty()) throw Error("no frames given");
+  LoadedClip c;
+  c.source_frames = int64_t(rgb.size());
+  c.source_indices = uniform_frame_indices(c.source_frames, frames);
+  for (int64_t i : c.source_indices) {
+    const cv::Mat& m = rgb[size_t(i)];
+    if (m.empty() || m.type() != CV_8UC3) throw Error("frames must be non-empty 8-bit RGB images");
+    c.rgb.push_back(squash_to_square(m, size));
+  }
+  return c;
+}
+
 LoadedClip load_clip(const std::string& path, int64_t frames, int size) {
   if (frames < 1) throw Error("--frames must be at least 1");
   if (!fs::exists(path)) throw Error(path + ": no such video file or frame folder");
@@ -195,21 +210,19 @@ Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb) {
   return t;
 }
 
-Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size) {
-  if (!fs::is_directory(dir)) throw Error(dir + ": mask folder does not exist");
-  const std::vector<std::string> files = role_files(dir, "_mask");
+// One mask per sampled frame or one per source frame of `clip`; image(i) gives the i-th of `count` grey images.
+static Tensor masks_tensor(size_t count, const std::function<cv::Mat(size_t)>& image, const LoadedClip& clip, int size,
+                           const std::string& what) {
   const int64_t frames = int64_t(clip.source_indices.size());
-  const bool per_source_frame = int64_t(files.size()) == clip.source_frames;
-  if (!per_source_frame && int64_t(files.size()) != frames)
-    throw Error(dir + ": " + std::to_string(files.size()) + " mask images but " + std::to_string(frames) +
+  const bool per_source_frame = int64_t(count) == clip.source_frames;
+  if (!per_source_frame && int64_t(count) != frames)
+    throw Error(what + ": " + std::to_string(count) + " mask images but " + std::to_string(frames) +
                 " sampled frames of " + std::to_string(clip.source_frames) +
                 " (give one mask per sampled frame or one per frame of the clip)");
   const int64_t plane = int64_t(size) * size;
   Tensor t({frames, 1, size, size});
   for (int64_t f = 0; f < frames; ++f) {
-    const std::string& path = files[size_t(per_source_frame ? clip.source_indices[size_t(f)] : f)];
-    cv::Mat g = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    if (g.empty()) throw Error(path + ": cannot decode mask image");
+    const cv::Mat g = image(size_t(per_source_frame ? clip.source_indices[size_t(f)] : f));
     cv::Mat r;
     cv::resize(g, r, cv::Size(size, size), 0, 0, cv::INTER_NEAREST);
     float* dst = t.data() + f * plane;
@@ -219,6 +232,23 @@ Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size) {
     }
   }
   return t;
+}
+
+Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size) {
+  if (!fs::is_directory(dir)) throw Error(dir + ": mask folder does not exist");
+  const std::vector<std::string> files = role_files(dir, "_mask");
+  const auto image = [&](size_t i) {
+    cv::Mat g = cv::imread(files[i], cv::IMREAD_GRAYSCALE);
+    if (g.empty()) throw Error(files[i] + ": cannot decode mask image");
+    return g;
+  };
+  return masks_tensor(files.size(), image, clip, size, dir);
+}
+
+Tensor masks_from_images(const std::vector<cv::Mat>& grey, const LoadedClip& clip, int size, const std::string& what) {
+  for (const cv::Mat& m : grey)
+    if (m.empty() || m.type() != CV_8UC1) throw Error(what + ": masks must be non-empty 8-bit grey images");
+  return masks_tensor(grey.size(), [&](size_t i) { return grey[i]; }, clip, size, what);
 }
 
 std::vector<cv::Mat> synthetic_sample_clip(int frames, int size) {

@@ -37,6 +37,9 @@ struct LoadedClip {
 // folder holding *_rgb images (the data release's layout, beside *_mask and *_pressure images) uses only those.
 // Errors (one line): missing path, unreadable video or image, zero frames.
 LoadedClip load_clip(const std::string& path, int64_t frames, int size);
+// Source frames already in memory (8-bit RGB, CV_8UC3, any one size; the images are only read): sampled and squashed
+// exactly as the images of a frame folder are.
+LoadedClip clip_from_images(const std::vector<cv::Mat>& rgb, int64_t frames, int size);
 
 // 8-bit RGB images -> [F, 3, S, S] float32 with x = 2 (v / 255) - 1.
 Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb);
@@ -46,6 +49,9 @@ Tensor frames_to_tensor(const std::vector<cv::Mat>& rgb);
 // (the dataset layout: masks beside every frame), of which the sampled ones are taken. Any other count is an error.
 // A folder holding *_mask images uses only those.
 Tensor load_masks(const std::string& dir, const LoadedClip& clip, int size);
+// Masks already in memory (8-bit grey, CV_8UC1), counted and used like the images of a mask folder; `what` names
+// them in errors.
+Tensor masks_from_images(const std::vector<cv::Mat>& grey, const LoadedClip& clip, int size, const std::string& what);
 
 // The built-in demo clip, deterministic: a skin-coloured hand-like blob closing its fingers around a coloured box
 // over a plain background. `frames` RGB images of size x size.

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdarg>
+#include <cstring>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -25,14 +26,15 @@
 #include "core/timing.h"
 #include "pipeline/egopressurediff.h"
 #include "pipeline/media.h"
+#include "pipeline/predict_detail.h"
 #include "pipeline/synthetic_model.h"
 #include "pressure/pressure.h"
+#include "pressure/taxel_csv.h"
 #include "scheduler/sampler.h"
 
 namespace egopd {
 namespace fs = std::filesystem;
-using ojson = nlohmann::ordered_json;
-using Clock = std::chrono::steady_clock;
+using namespace detail;
 
 namespace {
 
@@ -42,58 +44,6 @@ constexpr uint64_t kBuiltinSeed = 0;
 constexpr int kBuiltinLcmSteps = 4;
 constexpr DType kBuiltinDType = DType::F32;
 constexpr const char* kBuiltinName = "tiny-synthetic-f32-lcm4-seed0";
-constexpr double kVideoFps = 5;
-
-void say(const char* fmt, ...) __attribute__((format(printf, 1, 2)));
-void say(const char* fmt, ...) {
-  va_list ap;
-  va_start(ap, fmt);
-  std::vfprintf(stderr, fmt, ap);
-  va_end(ap);
-  std::fputc('\n', stderr);
-  std::fflush(stderr);
-}
-
-// Sampler progress on stderr: an updating bar on a terminal, plain lines otherwise (logs, pipes).
-class StepProgress {
- public:
-  explicit StepProgress(std::string prefix) : prefix_(std::move(prefix)), tty_(::isatty(2) != 0) {}
-  void operator()(int i, int n, double seconds) {
-    sum_ += seconds;
-    const double per = sum_ / i, eta = per * (n - i);
-    if (tty_) {
-      constexpr int kWidth = 24;
-      const int fill = int(std::lround(double(kWidth) * i / n));
-      const std::string bar = std::string(size_t(fill), '#') + std::string(size_t(kWidth - fill), ' ');
-      const long e = std::lround(eta);
-      std::fprintf(stderr, "\r%sstep %d/%d [%s] %.2f s/it ETA %ld:%02ld\033[K", prefix_.c_str(), i, n, bar.c_str(), per,
-                   e / 60, e % 60);
-      if (i == n) std::fputc('\n', stderr);
-    } else {
-      std::fprintf(stderr, "%sstep %d/%d %.2f s/it ETA %.0f s\n", prefix_.c_str(), i, n, per, eta);
-    }
-    if (i == n) std::fprintf(stderr, "%sdecoding %s\n", prefix_.c_str(), "(temporal VAE) and reading out taxels");
-    std::fflush(stderr);
-    throw_if_interrupted("after step " + std::to_string(i) + " of " + std::to_string(n));
-  }
-
- private:
-  std::string prefix_;
-  bool tty_;
-  double sum_ = 0;
-};
-
-// One clip on a loaded model: resolved settings, the sampled frames and masks, and the stage times so far.
-struct Prepared {
-  Clock::time_point start;
-  const PredictModel* model = nullptr;
-  bool builtin_clip = false;
-  PipelineSettings settings;
-  LoadedClip clip;
-  Tensor frames, masks;
-  StageTimes times;  // encoding (shared by every prompt)
-  EgoPressureDiffPipeline& pipe() const { return model->pipeline(); }
-};
 
 void require_exists(const std::string& path, const std::string& what) {
   if (!path.empty() && !fs::exists(path)) throw Error(path + ": " + what + " does not exist");
@@ -105,10 +55,104 @@ std::string model_scheduler_name(const std::string& model_dir) {
   return load_sampler(cfg.string())->name();
 }
 
+std::string where_of(const RunProgress& p) {
+  std::string w = std::string("at ") + p.stage;
+  if (p.steps > 0) w += " step " + std::to_string(p.step) + " of " + std::to_string(p.steps);
+  if (p.variants > 0) w += " of variant " + std::to_string(p.variant) + " of " + std::to_string(p.variants);
+  return w;
+}
+
 }  // namespace
 
+Cancelled::Cancelled(const std::string& where)
+    : Error("cancelled by the progress callback " + where + ": stopped, no partial output left") {}
+
+StderrProgress::StderrProgress(std::string prefix) : prefix_(std::move(prefix)), tty_(::isatty(2) != 0) {}
+
+void StderrProgress::operator()(const RunProgress& p) {
+  std::string prefix = prefix_;
+  if (p.variants > 0) prefix += "[" + std::to_string(p.variant) + "/" + std::to_string(p.variants) + "] ";
+  if (std::strcmp(p.stage, "decode") == 0) {
+    std::fprintf(stderr, "%sdecoding %s\n", prefix.c_str(), "(temporal VAE) and reading out taxels");
+  } else if (std::strcmp(p.stage, "denoise") == 0 && p.step > 0) {
+    const int i = p.step, n = p.steps;
+    if (i == 1) sum_ = 0;
+    sum_ += p.step_seconds;
+    const double per = sum_ / i, eta = per * (n - i);
+    if (tty_) {
+      constexpr int kWidth = 24;
+      const int fill = int(std::lround(double(kWidth) * i / n));
+      const std::string bar = std::string(size_t(fill), '#') + std::string(size_t(kWidth - fill), ' ');
+      const long e = std::lround(eta);
+      std::fprintf(stderr, "\r%sstep %d/%d [%s] %.2f s/it ETA %ld:%02ld\033[K", prefix.c_str(), i, n, bar.c_str(),
+                   per, e / 60, e % 60);
+      if (i == n) std::fputc('\n', stderr);
+    } else {
+      std::fprintf(stderr, "%sstep %d/%d %.2f s/it ETA %.0f s\n", prefix.c_str(), i, n, per, eta);
+    }
+  }
+  std::fflush(stderr);
+}
+
+RunHooks stderr_hooks(const std::string& prefix) {
+  RunHooks h;
+  h.log = [](const std::string& line) {
+    std::fprintf(stderr, "%s\n", line.c_str());
+    std::fflush(stderr);
+  };
+  auto bar = std::make_shared<StderrProgress>(prefix);
+  h.progress = [bar](const RunProgress& p) {
+    (*bar)(p);
+    return true;
+  };
+  h.prefix = prefix;
+  return h;
+}
+
+namespace detail {
+
+void Reporter::say(const char* fmt, ...) const {
+  if (!hooks_.log) return;
+  va_list ap;
+  va_start(ap, fmt);
+  char buf[1024];
+  const int n = std::vsnprintf(buf, sizeof buf, fmt, ap);
+  va_end(ap);
+  std::string line = buf;
+  if (n >= int(sizeof buf)) {  // long paths or prompts: format again into a buffer of the right size
+    std::vector<char> big(size_t(n) + 1);
+    va_start(ap, fmt);
+    std::vsnprintf(big.data(), big.size(), fmt, ap);
+    va_end(ap);
+    line = big.data();
+  }
+  hooks_.log(line);
+}
+
+void Reporter::report(RunProgress p, const std::string& where) const {
+  p.elapsed_seconds = seconds_since(start_);
+  p.variant = variant_, p.variants = variants_;
+  if (hooks_.progress && !hooks_.progress(p)) throw Cancelled(where.empty() ? where_of(p) : where);
+}
+
+void Reporter::stage(const char* name) const {
+  RunProgress p;
+  p.stage = name;
+  report(p, "");
+}
+
+void Reporter::step(int i, int n, double seconds) const {
+  RunProgress p;
+  p.stage = "denoise";
+  p.step = i, p.steps = n, p.step_seconds = seconds;
+  report(p, "");
+  throw_if_interrupted("after step " + std::to_string(i) + " of " + std::to_string(n));
+  if (i == n) stage("decode");
+}
+
+}  // namespace detail
+
 void check_predict_options(const PredictOptions& o) {
-  if (o.out_dir.empty()) throw Error("--out is required");
   if (o.size < 64 || o.size % 64) throw Error("--size must be a positive multiple of 64 (got " + std::to_string(o.size) + ")");
   if (o.prompt && !o.meta_path.empty()) throw Error("give either --prompt or --meta, not both");
   if (o.steps < 0) throw Error("--steps must be positive");
@@ -116,6 +160,9 @@ void check_predict_options(const PredictOptions& o) {
   if (o.decode_chunk < 0) throw Error("--decode-chunk must be positive");
   if (!o.sampler.empty() && o.sampler != "euler" && o.sampler != "lcm")
     throw Error("--sampler must be euler or lcm (got '" + o.sampler + "')");
+  if (o.guidance && (!std::isfinite(o.guidance->first) || !std::isfinite(o.guidance->second) ||
+                     o.guidance->first < 0 || o.guidance->second < 0))
+    throw Error("--guidance: MIN and MAX must be finite and not negative");
   // Prompts and paths go into summary.json: invalid UTF-8 is rejected now, not by the JSON writer at the end.
   if (o.prompt && !is_valid_utf8(*o.prompt)) throw Error("--prompt is not valid UTF-8 text");
   for (const auto& [flag, path] : {std::pair<const char*, const std::string*>{"--model", &o.model_dir},
@@ -130,14 +177,15 @@ void check_predict_options(const PredictOptions& o) {
   if (o.template_path.empty()) default_template_path();  // EGOPD_TEMPLATE naming a missing file fails now
 }
 
-namespace {
+namespace detail {
 
-// Settings, frames and masks of one clip; the built-in sample clip is saved into work_dir.
 Prepared prepare_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
-                      const std::string& work_dir, const std::string& prefix) {
+                      const std::string& work_dir, const Reporter& rep) {
   Prepared p;
   p.start = Clock::now();
   p.model = &model;
+  if (!src.video.empty() && !src.frames.empty()) throw Error("give either a video (--video) or frames, not both");
+  if (!src.masks_dir.empty() && !src.masks.empty()) throw Error("give either a mask folder (--masks) or masks, not both");
   require_exists(src.video, "video file or frame folder");
   require_exists(src.masks_dir, "mask folder");
   PipelineSettings& s = p.settings;
@@ -149,42 +197,63 @@ Prepared prepare_clip(const PredictModel& model, const PredictOptions& o, const 
   if (o.guidance) s.min_guidance = o.guidance->first, s.max_guidance = o.guidance->second;
   s.decode_chunk = o.decode_chunk;
 
-  const int S = int(o.size);
-  p.builtin_clip = src.video.empty();
+  const int S = int(p.pipe().size());
+  const char* prefix = rep.prefix().c_str();
+  p.builtin_clip = src.video.empty() && src.frames.empty();
   if (p.builtin_clip) {
-    const std::string sample = (fs::path(work_dir) / "sample_clip.mp4").string();
     p.clip.rgb = synthetic_sample_clip(int(s.frames), S);
     p.clip.source_frames = s.frames;
     for (int64_t i = 0; i < s.frames; ++i) p.clip.source_indices.push_back(i);
-    std::vector<cv::Mat> bgr;
-    for (const cv::Mat& m : p.clip.rgb) {
-      cv::Mat b;
-      cv::cvtColor(m, b, cv::COLOR_RGB2BGR);
-      bgr.push_back(b);
+    if (!work_dir.empty()) {
+      std::vector<cv::Mat> bgr;
+      for (const cv::Mat& m : p.clip.rgb) {
+        cv::Mat b;
+        cv::cvtColor(m, b, cv::COLOR_RGB2BGR);
+        bgr.push_back(b);
+      }
+      write_video_atomic((fs::path(work_dir) / "sample_clip.mp4").string(), bgr, kVideoFps);
     }
-    write_video_atomic(sample, bgr, kVideoFps);
-    say("%sclip: built-in SYNTHETIC sample clip (%lld frames, saved as sample_clip.mp4)", prefix.c_str(),
-        static_cast<long long>(s.frames));
+    rep.say("%sclip: built-in SYNTHETIC sample clip (%lld frames%s)", prefix, static_cast<long long>(s.frames),
+            work_dir.empty() ? "" : ", saved as sample_clip.mp4");
+  } else if (!src.frames.empty()) {
+    p.clip = clip_from_images(src.frames, s.frames, S);
+    rep.say("%sclip: %zu frames from memory (%dx%d, %lld sampled)", prefix, src.frames.size(), src.frames[0].cols,
+            src.frames[0].rows, static_cast<long long>(s.frames));
   } else {
     p.clip = load_clip(src.video, s.frames, S);
-    say("%sclip: %s (%lld frames, %lld sampled)", prefix.c_str(), src.video.c_str(),
-        static_cast<long long>(p.clip.source_frames), static_cast<long long>(s.frames));
+    rep.say("%sclip: %s (%lld frames, %lld sampled)", prefix, src.video.c_str(),
+            static_cast<long long>(p.clip.source_frames), static_cast<long long>(s.frames));
   }
   p.frames = frames_to_tensor(p.clip.rgb);
   if (!src.masks_dir.empty()) p.masks = load_masks(src.masks_dir, p.clip, S);
+  else if (!src.masks.empty()) p.masks = masks_from_images(src.masks, p.clip, S, "masks");
   return p;
 }
 
-struct FrameForces {
-  std::vector<double> total_n;  // per frame: sum of the 162 taxels in N
-  std::vector<bool> contact;    // per frame: any taxel in contact
-  double mean() const {
-    double m = 0;
-    for (double v : total_n) m += v;
-    return total_n.empty() ? 0 : m / double(total_n.size());
+ClipOutcome outcome_of(const Prepared& p, const EgoPressureDiffPipeline::Result& r) {
+  ClipOutcome c;
+  c.frames = int64_t(r.frames.size());
+  c.size = p.pipe().size();
+  c.num_taxels = r.frames.empty() ? 0 : int(r.frames[0].p.size());
+  const size_t plane = size_t(c.size * c.size);
+  for (const PressureRenderer::Frame& fr : r.frames) {
+    if (int(fr.p.size()) != c.num_taxels || fr.h_std.size() != plane) throw Error("internal: frames of different sizes");
+    double total = 0;
+    bool contact = false;
+    for (double v : fr.p) {
+      const double n = kPressureMax * v;  // as newtons_from_normalized writes taxels.csv
+      c.taxels_n.push_back(n);
+      total += n, contact = contact || in_contact(v);
+    }
+    for (double h : fr.h_std) c.heatmaps.push_back(float(h));
+    c.total_force_n.push_back(total);
+    c.contact.push_back(contact ? 1 : 0);
   }
-  double peak() const { return total_n.empty() ? 0 : *std::max_element(total_n.begin(), total_n.end()); }
-};
+  for (double t : c.total_force_n) c.mean_total_force_n += t;
+  if (c.frames > 0) c.mean_total_force_n /= double(c.frames);
+  if (c.frames > 0) c.peak_total_force_n = *std::max_element(c.total_force_n.begin(), c.total_force_n.end());
+  return c;
+}
 
 cv::Mat painted(const EgoPressureDiffPipeline& pipe, const std::vector<double>& h) {
   const int S = int(pipe.size());
@@ -194,38 +263,33 @@ cv::Mat painted(const EgoPressureDiffPipeline& pipe, const std::vector<double>& 
   return cv::Mat(S, S, CV_8UC3, px.data()).clone();
 }
 
+namespace {
 std::string numbered(const char* stem, size_t i, const char* ext) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "%s_%03zu.%s", stem, i, ext);
   return buf;
 }
+}  // namespace
 
-// Heatmap PNGs, side-by-side video and taxels.csv of one result; returns the per-frame forces.
-FrameForces write_outputs(const std::string& dir, const Prepared& p, const EgoPressureDiffPipeline::Result& r) {
+void write_outputs(const std::string& dir, const Prepared& p, const EgoPressureDiffPipeline::Result& r,
+                   const ClipOutcome& c) {
   std::error_code ec;
   fs::create_directories(dir, ec);
   if (!fs::is_directory(dir)) throw Error(dir + ": cannot create output folder");
-  FrameForces ff;
-  std::vector<std::vector<double>> taxels;
   std::vector<cv::Mat> side;
   for (size_t f = 0; f < r.frames.size(); ++f) {
-    const PressureRenderer::Frame& fr = r.frames[f];
-    cv::Mat heat = painted(p.pipe(), fr.h_std);
+    cv::Mat heat = painted(p.pipe(), r.frames[f].h_std);
     write_png_atomic((fs::path(dir) / numbered("heatmap", f, "png")).string(), heat);
     cv::Mat rgb_bgr, pair;
     cv::cvtColor(p.clip.rgb[f], rgb_bgr, cv::COLOR_RGB2BGR);
     cv::hconcat(rgb_bgr, heat, pair);
     side.push_back(pair);
-    taxels.push_back(fr.p);
-    double total = 0;
-    bool contact = false;
-    for (double v : fr.p) total += kPressureMax * v, contact = contact || in_contact(v);
-    ff.total_n.push_back(total);
-    ff.contact.push_back(contact);
   }
   write_video_atomic((fs::path(dir) / "side_by_side.mp4").string(), side, kVideoFps);
-  write_taxel_csv((fs::path(dir) / "taxels.csv").string(), newtons_from_normalized(taxels));
-  return ff;
+  TaxelSequence seq;
+  seq.num_taxels = c.num_taxels;
+  for (int64_t f = 0; f < c.frames; ++f) seq.add_row(f, c.taxels_n.data() + f * c.num_taxels);
+  write_taxel_csv((fs::path(dir) / "taxels.csv").string(), seq);
 }
 
 ojson timings_json(const StageTimes& t, double total) {
@@ -237,7 +301,7 @@ ojson timings_json(const StageTimes& t, double total) {
 
 ojson summary_json(const PredictOptions& o, const ClipSource& src, const Prepared& p,
                    const EgoPressureDiffPipeline::Shared& sh, const std::optional<std::string>& prompt, bool truncated,
-                   const FrameForces& ff) {
+                   const ClipOutcome& c) {
   ojson j;
   j["prompt"] = prompt ? ojson(*prompt) : ojson(nullptr);
   j["prompt_truncated"] = truncated;
@@ -247,51 +311,51 @@ ojson summary_json(const PredictOptions& o, const ClipSource& src, const Prepare
   j["frames"] = sh.frames;
   j["size"] = p.pipe().size();
   j["guidance"] = {p.settings.min_guidance, p.settings.max_guidance};
-  j["low_mem"] = o.low_mem;
+  j["low_mem"] = p.pipe().low_mem();
   j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : sh.frames;
   j["model_dir"] = p.model->model_dir();
   j["model_synthetic"] = p.model->builtin();
-  j["video"] = p.builtin_clip ? ojson("sample_clip.mp4 (built-in synthetic clip)") : ojson(src.video);
-  j["masks"] = src.masks_dir.empty() ? ojson(nullptr) : ojson(src.masks_dir);
+  if (p.builtin_clip) j["video"] = "sample_clip.mp4 (built-in synthetic clip)";
+  else if (!src.frames.empty()) j["video"] = std::to_string(src.frames.size()) + " frames from memory";
+  else j["video"] = src.video;
+  if (!src.masks.empty()) j["masks"] = std::to_string(src.masks.size()) + " masks from memory";
+  else j["masks"] = src.masks_dir.empty() ? ojson(nullptr) : ojson(src.masks_dir);
   const HandTemplate& t = p.pipe().hand_template();
   j["template"] = {{"name", t.name()}, {"synthetic", t.synthetic()}};
   ojson frames = ojson::array();
-  for (size_t f = 0; f < ff.total_n.size(); ++f)
+  for (size_t f = 0; f < c.total_force_n.size(); ++f)
     frames.push_back({{"frame", f},
                       {"source_index", p.clip.source_indices[f]},
-                      {"total_force_n", ff.total_n[f]},
-                      {"contact", bool(ff.contact[f])}});
-  j["mean_total_force_n"] = ff.mean();
-  j["peak_total_force_n"] = ff.peak();
+                      {"total_force_n", c.total_force_n[f]},
+                      {"contact", c.contact[f] != 0}});
+  j["mean_total_force_n"] = c.mean_total_force_n;
+  j["peak_total_force_n"] = c.peak_total_force_n;
   j["per_frame"] = frames;
   return j;
 }
 
-void finish_summary(ojson& j, const std::string& dir, const StageTimes& times, double total) {
+void finish_summary(ojson& j, const std::string& dir, const StageTimes& times, double total, ClipOutcome& c) {
   j["timings_s"] = timings_json(times, total);
   j["peak_rss_bytes"] = peak_rss_bytes();
-  write_file_atomic((fs::path(dir) / "summary.json").string(), j.dump(2) + "\n");
+  c.summary_json = j.dump(2) + "\n";
+  c.seconds = total;
+  if (!dir.empty()) write_file_atomic((fs::path(dir) / "summary.json").string(), c.summary_json);
 }
 
-std::optional<std::string> prompt_of(const ClipSource& src, const EgoPressureDiffPipeline& pipe) {
-  if (src.prompt) return src.prompt;
-  if (src.meta) return pipe.prompt_for(*src.meta);
-  return std::nullopt;
+void announce_prompt(const Reporter& rep, const std::optional<std::string>& prompt, bool truncated,
+                     const std::string& prefix) {
+  if (prompt) rep.say("%sprompt: \"%s\"", prefix.c_str(), prompt->c_str());
+  else rep.say("%sno prompt: no-text mode", prefix.c_str());
+  if (truncated) rep.say("%swarning: the prompt is longer than 77 CLIP tokens and was truncated", prefix.c_str());
 }
+
+}  // namespace detail
 
 ClipSource clip_source(const PredictOptions& o) {
-  ClipSource src{o.video, o.masks_dir, o.prompt, std::nullopt};
+  ClipSource src{o.video, o.masks_dir, o.prompt, std::nullopt, {}, {}};
   if (!o.meta_path.empty()) src.meta = load_prompt_fields(o.meta_path);
   return src;
 }
-
-void announce_prompt(const std::optional<std::string>& prompt, bool truncated, const std::string& prefix) {
-  if (prompt) say("%sprompt: \"%s\"", prefix.c_str(), prompt->c_str());
-  else say("%sno prompt: no-text mode", prefix.c_str());
-  if (truncated) say("%swarning: the prompt is longer than 77 CLIP tokens and was truncated", prefix.c_str());
-}
-
-}  // namespace
 
 std::pair<float, float> parse_guidance(const std::string& text) {
   const auto bad = [&] { return Error("--guidance expects MIN,MAX (e.g. 1,3) or one number, got '" + text + "'"); };
@@ -317,26 +381,37 @@ int resolve_steps(const PredictOptions& o, const std::string& model_scheduler) {
   return 0;
 }
 
+VarySpec make_vary(const std::string& field, std::vector<std::string> values) {
+  VarySpec v;
+  v.field = field;
+  // The library's own field list decides which names are prompt attributes.
+  if (field.empty() || !prompt_fields_from_json(nlohmann::json{{field, "x"}}, "--vary").count(field))
+    throw Error("--vary: '" + field +
+                "' is not a prompt field (obj_name, weight, material, gender, age, subj_weight, bodyfat)");
+  if (values.empty()) throw Error("--vary needs at least one value");
+  for (const std::string& value : values) {
+    if (value.empty()) throw Error("--vary: empty value for '" + field + "'");
+    if (!is_valid_utf8(value)) throw Error("--vary: a value for '" + field + "' is not valid UTF-8 text");
+  }
+  v.values = std::move(values);
+  return v;
+}
+
 VarySpec parse_vary(const std::string& text) {
   const size_t eq = text.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == text.size())
     throw Error("--vary expects FIELD=v1,v2,... (e.g. weight=1,355,1000,omit), got '" + text + "'");
-  VarySpec v;
-  v.field = text.substr(0, eq);
-  // The library's own field list decides which names are prompt attributes.
-  if (!prompt_fields_from_json(nlohmann::json{{v.field, "x"}}, "--vary").count(v.field))
-    throw Error("--vary: '" + v.field +
-                "' is not a prompt field (obj_name, weight, material, gender, age, subj_weight, bodyfat)");
+  std::vector<std::string> values;
   std::string rest = text.substr(eq + 1);
   size_t start = 0;
   while (start <= rest.size()) {
     const size_t c = std::min(rest.find(',', start), rest.size());
     const std::string item = rest.substr(start, c - start);
     if (item.empty()) throw Error("--vary: empty value in '" + text + "'");
-    v.values.push_back(item);
+    values.push_back(item);
     start = c + 1;
   }
-  return v;
+  return make_vary(text.substr(0, eq), std::move(values));
 }
 
 std::string variant_folder_name(const std::string& field, const std::string& value) {
@@ -370,254 +445,102 @@ std::string default_model_dir(const std::string& out_dir) {
   return ((parent.empty() ? fs::path(".") : parent) / ".egopd-default-model").string();
 }
 
-PredictModel::PredictModel(const PredictOptions& o) {
+PredictModel::PredictModel(const PredictOptions& o, const RunHooks& hooks) {
   const auto start = Clock::now();
+  const Reporter rep(hooks);
   check_predict_options(o);
   builtin_ = o.model_dir.empty();
   model_dir_ = builtin_ ? default_model_dir(o.out_dir) : o.model_dir;
   if (builtin_) {
     if (!fs::exists(fs::path(model_dir_) / "model_index.json")) {
-      say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
+      rep.say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
       // Built beside its place and moved in whole: parallel runs (batch array tasks) never see half a model; the
       // model is deterministic, so when another run got there first its copy is as good as ours.
       AtomicDir tmp(model_dir_, "model_index.json");
       write_synthetic_model(tmp.path(), "tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
       if (!fs::exists(fs::path(model_dir_) / "model_index.json")) tmp.commit();
     }
-    say("model: built-in SYNTHETIC model %s (random weights: the pressures are NOT meaningful)", model_dir_.c_str());
+    rep.say("model: built-in SYNTHETIC model %s (random weights: the pressures are NOT meaningful)",
+            model_dir_.c_str());
   }
-  say("loading model %s (%lldx%lld)", model_dir_.c_str(), static_cast<long long>(o.size),
-      static_cast<long long>(o.size));
-  if (o.low_mem) say("low-memory mode: components are loaded one at a time and released after use");
+  rep.say("loading model %s (%lldx%lld)", model_dir_.c_str(), static_cast<long long>(o.size),
+          static_cast<long long>(o.size));
+  if (o.low_mem) rep.say("low-memory mode: components are loaded one at a time and released after use");
   pipe_ = std::make_unique<EgoPressureDiffPipeline>(model_dir_, o.size, o.template_path, o.low_mem);
   const HandTemplate& t = pipe_->hand_template();
-  say("hand template: %s%s", t.name().c_str(), t.synthetic() ? " (SYNTHETIC layout, not the real glove)" : "");
+  rep.say("hand template: %s%s", t.name().c_str(), t.synthetic() ? " (SYNTHETIC layout, not the real glove)" : "");
   if (!pipe_->renderer().warnings().empty())
-    say("warning: %zu template sensors lie outside the hand region (first: %s)", pipe_->renderer().warnings().size(),
-        pipe_->renderer().warnings()[0].c_str());
+    rep.say("warning: %zu template sensors lie outside the hand region (first: %s)",
+            pipe_->renderer().warnings().size(), pipe_->renderer().warnings()[0].c_str());
   load_seconds_ = seconds_since(start);
 }
 
 PredictModel::~PredictModel() = default;
 
 ClipOutcome predict_clip(const PredictModel& model, const PredictOptions& o, const ClipSource& src,
-                         const std::string& out_dir, const std::string& prefix) {
-  AtomicDir out(out_dir, "summary.json");
-  Prepared p = prepare_clip(model, o, src, out.path(), prefix);
+                         const std::string& out_dir, const RunHooks& hooks) {
+  const Reporter rep(hooks);
+  const std::string& prefix = hooks.prefix;
+  std::optional<AtomicDir> out;
+  if (!out_dir.empty()) out.emplace(out_dir, "summary.json");
+  Prepared p = prepare_clip(model, o, src, out ? out->path() : "", rep);
   EgoPressureDiffPipeline& pipe = p.pipe();
   StageTimes& times = p.times;
-  const std::optional<std::string> prompt = prompt_of(src, pipe);
+  const std::optional<std::string> prompt =
+      src.prompt ? src.prompt : src.meta ? pipe.prompt_for(*src.meta) : std::nullopt;
   bool truncated = false;
   const Tensor text = pipe.encode_text(prompt, &truncated, &times);
-  announce_prompt(prompt, truncated, prefix);
+  announce_prompt(rep, prompt, truncated, prefix);
   throw_if_interrupted("before encoding");
 
-  say("%sencoding %lld frames (VAE, %s, prototype)", prefix.c_str(), static_cast<long long>(p.settings.frames),
-      p.masks.empty() ? "no masks" : "masks");
+  rep.stage("encode");
+  rep.say("%sencoding %lld frames (VAE, %s, prototype)", prefix.c_str(), static_cast<long long>(p.settings.frames),
+          p.masks.empty() ? "no masks" : "masks");
   const EgoPressureDiffPipeline::Shared sh =
       pipe.encode(p.frames, p.masks.empty() ? nullptr : &p.masks, p.settings, &times);
   throw_if_interrupted("after encoding");
-  say("%sdenoising: %s sampler, %d steps, seed %llu", prefix.c_str(), sh.sampler->name(), sh.sampler->num_steps(),
-      static_cast<unsigned long long>(o.seed));
-  const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, StepProgress(prefix), &times);
+  rep.say("%sdenoising: %s sampler, %d steps, seed %llu", prefix.c_str(), sh.sampler->name(), sh.sampler->num_steps(),
+          static_cast<unsigned long long>(o.seed));
+  const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, rep.step_callback(), &times);
   throw_if_interrupted("after decoding");
 
-  say("%swriting outputs", prefix.c_str());
-  FrameForces ff;
-  double total = 0;
-  out.fill_and_commit([&](const std::string& dir) {
+  ClipOutcome c = outcome_of(p, r);
+  if (!out) {
+    ojson j = summary_json(o, src, p, sh, prompt, truncated, c);
+    finish_summary(j, "", times, seconds_since(p.start), c);
+    return c;
+  }
+  rep.stage("write");
+  rep.say("%swriting outputs", prefix.c_str());
+  out->fill_and_commit([&](const std::string& dir) {
     {
       ScopedStage st(&times, "write");
-      ff = write_outputs(dir, p, r);
+      write_outputs(dir, p, r, c);
     }
-    ojson j = summary_json(o, src, p, sh, prompt, truncated, ff);
-    total = seconds_since(p.start);
-    finish_summary(j, dir, times, total);
+    ojson j = summary_json(o, src, p, sh, prompt, truncated, c);
+    finish_summary(j, dir, times, seconds_since(p.start), c);
   });
-  ClipOutcome c;
-  c.frames = int64_t(ff.total_n.size());
-  c.mean_total_force_n = ff.mean();
-  c.peak_total_force_n = ff.peak();
-  c.seconds = total;
   return c;
 }
 
-int run_predict(const PredictOptions& o) {
+void log_predict_done(const RunHooks& hooks, const ClipOutcome& c, double load_seconds, bool builtin_model,
+                      const std::string& out_dir) {
+  const Reporter rep(hooks);
+  rep.say("done in %.1f s: mean total force %.2f N, peak %.2f N%s", load_seconds + c.seconds, c.mean_total_force_n,
+          c.peak_total_force_n, builtin_model ? " (synthetic model: not meaningful)" : "");
+  if (!out_dir.empty())
+    rep.say("outputs in %s: heatmap_000.png..heatmap_%03lld.png, side_by_side.mp4, taxels.csv, summary.json",
+            out_dir.c_str(), static_cast<long long>(c.frames > 0 ? c.frames - 1 : 0));
+}
+
+int run_predict(const PredictOptions& o, const RunHooks& hooks) {
+  if (o.out_dir.empty()) throw Error("--out is required");
   install_interrupt_handlers();
   check_predict_options(o);
   const ClipSource src = clip_source(o);
-  const PredictModel model(o);
-  const ClipOutcome c = predict_clip(model, o, src, o.out_dir);
-  say("done in %.1f s: mean total force %.2f N, peak %.2f N%s", model.load_seconds() + c.seconds,
-      c.mean_total_force_n, c.peak_total_force_n, model.builtin() ? " (synthetic model: not meaningful)" : "");
-  say("outputs in %s: heatmap_000.png..heatmap_%03lld.png, side_by_side.mp4, taxels.csv, summary.json",
-      o.out_dir.c_str(), static_cast<long long>(c.frames > 0 ? c.frames - 1 : 0));
-  return 0;
-}
-
-namespace {
-
-struct Variant {
-  std::string label;   // FIELD=value or FIELD omitted
-  std::string folder;  // e.g. weight_355g
-  std::string value;   // formatted value, "omit" for a dropped field
-  PromptFields fields;
-};
-
-std::vector<Variant> make_variants(const PromptFields& base, const VarySpec& vary) {
-  std::vector<Variant> out;
-  for (const std::string& raw : vary.values) {
-    Variant v;
-    v.fields = base;
-    if (raw == "omit") {
-      v.fields.erase(vary.field);
-      v.value = "omit";
-      v.label = vary.field + " omitted";
-    } else {
-      // A bare number gets the field's unit (355 -> 355g); anything else is used verbatim.
-      char* end = nullptr;
-      const double x = std::strtod(raw.c_str(), &end);
-      const nlohmann::json value = (*end == '\0' && std::isfinite(x)) ? nlohmann::json(x) : nlohmann::json(raw);
-      v.value = format_prompt_field(vary.field, value, "--vary");
-      v.fields[vary.field] = v.value;
-      v.label = vary.field + "=" + v.value;
-    }
-    v.folder = variant_folder_name(vary.field, v.value);
-    for (const Variant& o : out)
-      if (o.folder == v.folder) v.folder += "_" + std::to_string(out.size());
-    out.push_back(std::move(v));
-  }
-  return out;
-}
-
-// Rows = variants, columns = uniformly sampled frames; a label strip on the left and a header row on top.
-cv::Mat comparison_figure(const std::vector<std::string>& labels, const std::vector<std::vector<cv::Mat>>& cells,
-                          const std::vector<int64_t>& columns) {
-  const int S = cells[0][0].rows, label_w = 190, header_h = 24;
-  const int rows = int(cells.size()), cols = int(columns.size());
-  cv::Mat fig(header_h + rows * S, label_w + cols * S, CV_8UC3, cv::Scalar(16, 16, 16));
-  const double scale = 0.45;
-  for (int c = 0; c < cols; ++c)
-    cv::putText(fig, "frame " + std::to_string(columns[size_t(c)]), cv::Point(label_w + c * S + 4, 17),
-                cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(230, 230, 230), 1, cv::LINE_AA);
-  for (int r = 0; r < rows; ++r) {
-    const int y = header_h + r * S;
-    cv::putText(fig, labels[size_t(2 * r)], cv::Point(6, y + S / 2 - 4), cv::FONT_HERSHEY_SIMPLEX, scale,
-                cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
-    cv::putText(fig, labels[size_t(2 * r + 1)], cv::Point(6, y + S / 2 + 16), cv::FONT_HERSHEY_SIMPLEX, scale,
-                cv::Scalar(170, 200, 255), 1, cv::LINE_AA);
-    for (int c = 0; c < cols; ++c) cells[size_t(r)][size_t(c)].copyTo(fig(cv::Rect(label_w + c * S, y, S, S)));
-  }
-  return fig;
-}
-
-// Encodes the clip once, denoises once per variant and writes every variant folder, comparison.png and forces.csv
-// into `root`; returns the closing summary line.
-std::string counterfactual_into(const std::string& root, const PredictModel& model, const PredictOptions& o,
-                                const ClipSource& src, const std::vector<Variant>& variants, const VarySpec& vary) {
-  Prepared p = prepare_clip(model, o, src, root, "");
-  EgoPressureDiffPipeline& pipe = p.pipe();
-
-  say("encoding %lld frames once (VAE, %s, prototype, seed-%llu noise)", static_cast<long long>(p.settings.frames),
-      p.masks.empty() ? "no masks" : "masks", static_cast<unsigned long long>(o.seed));
-  const EgoPressureDiffPipeline::Shared sh =
-      pipe.encode(p.frames, p.masks.empty() ? nullptr : &p.masks, p.settings, &p.times);
-  const double shared_seconds = p.times.total();
-  say("reusing the cached conditioning (RGB latents, mask features, prototype token, initial and step noises) for "
-      "all %zu variants; only the prompt changes", variants.size());
-
-  const int64_t F = sh.frames;
-  const std::vector<int64_t> columns = uniform_frame_indices(F, std::min<int64_t>(4, F));
-  std::vector<std::string> labels;
-  std::vector<std::vector<cv::Mat>> cells;
-  std::vector<FrameForces> forces;
-  std::vector<double> variant_seconds;
-  for (size_t k = 0; k < variants.size(); ++k) {
-    const Variant& v = variants[k];
-    const auto t0 = Clock::now();
-    char prefix[64];
-    std::snprintf(prefix, sizeof prefix, "[%zu/%zu] ", k + 1, variants.size());
-    say("%s%s", prefix, v.label.c_str());
-    StageTimes vt;
-    const std::optional<std::string> prompt = pipe.prompt_for(v.fields);
-    bool truncated = false;
-    const Tensor text = pipe.encode_text(prompt, &truncated, &vt);
-    announce_prompt(prompt, truncated, prefix);
-    say("%sdenoising: %s sampler, %d steps", prefix, sh.sampler->name(), sh.sampler->num_steps());
-    const EgoPressureDiffPipeline::Result r = pipe.run(sh, text, p.settings, StepProgress(prefix), &vt);
-    const std::string dir = (fs::path(root) / v.folder).string();
-    FrameForces ff;
-    {
-      ScopedStage st(&vt, "write");
-      ff = write_outputs(dir, p, r);
-    }
-    std::vector<cv::Mat> row;
-    for (int64_t c : columns) row.push_back(painted(pipe, r.frames[size_t(c)].h_std));
-    cells.push_back(std::move(row));
-    char force[64];
-    std::snprintf(force, sizeof force, "mean %.2f N", ff.mean());
-    labels.push_back(v.label);
-    labels.push_back(force);
-    const double secs = seconds_since(t0);
-    ojson j = summary_json(o, src, p, sh, prompt, truncated, ff);
-    j["variant"] = {{"field", vary.field}, {"value", v.value}};
-    j["shared_timings_s"] = timings_json(p.times, shared_seconds);
-    finish_summary(j, dir, vt, secs);
-    std::string stages;
-    for (const auto& [name, s] : vt.entries()) {
-      char b[64];
-      std::snprintf(b, sizeof b, "%s%s %.2f s", stages.empty() ? "" : ", ", name.c_str(), s);
-      stages += b;
-    }
-    say("%s%s: %.2f s (%s)", prefix, v.folder.c_str(), secs, stages.c_str());
-    forces.push_back(ff);
-    variant_seconds.push_back(secs);
-  }
-
-  write_png_atomic((fs::path(root) / "comparison.png").string(), comparison_figure(labels, cells, columns));
-  std::string csv = "variant,field,value,mean_total_force_n,peak_total_force_n,contact_frames,seconds\n";
-  std::printf("%-28s %-16s %12s %12s %8s %9s\n", "variant", "value", "mean_N", "peak_N", "contact", "seconds");
-  for (size_t k = 0; k < variants.size(); ++k) {
-    const FrameForces& ff = forces[k];
-    const long contact = long(std::count(ff.contact.begin(), ff.contact.end(), true));
-    std::string quoted = "\"";  // the value is free text (materials, names): CSV-quote it
-    for (char c : variants[k].value) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-    quoted += "\"";
-    char nums[160];
-    std::snprintf(nums, sizeof nums, ",%.6g,%.6g,%ld,%.3f\n", ff.mean(), ff.peak(), contact, variant_seconds[k]);
-    csv += variants[k].folder + "," + vary.field + "," + quoted + nums;
-    std::printf("%-28s %-16s %12.3f %12.3f %5ld/%-2lld %9.2f\n", variants[k].folder.c_str(),
-                variants[k].value.c_str(), ff.mean(), ff.peak(), contact, static_cast<long long>(F),
-                variant_seconds[k]);
-  }
-  std::fflush(stdout);
-  write_file_atomic((fs::path(root) / "forces.csv").string(), csv);
-  double per_variant = 0;
-  for (double s : variant_seconds) per_variant += s;
-  char line[256];
-  std::snprintf(line, sizeof line, "done in %.1f s: loading + encoding %.2f s once, %zu variants %.2f s (%.2f s each)",
-                model.load_seconds() + seconds_since(p.start), shared_seconds, variants.size(), per_variant,
-                per_variant / double(variants.size()));
-  return line;
-}
-
-}  // namespace
-
-int run_counterfactual(const PredictOptions& o, const VarySpec& vary) {
-  if (o.prompt) throw Error("counterfactual varies prompt fields: give --meta (or nothing), not --prompt");
-  if (vary.values.empty()) throw Error("--vary needs at least one value");
-  install_interrupt_handlers();
-  check_predict_options(o);
-  const ClipSource src = clip_source(o);
-  const PromptFields base = src.meta ? *src.meta : PromptFields{};
-  const std::vector<Variant> variants = make_variants(base, vary);
-  const PredictModel model(o);
-  AtomicDir out(o.out_dir, "forces.csv");  // every variant, the figure and forces.csv appear together or not at all
-  std::string done;
-  out.fill_and_commit([&](const std::string& dir) { done = counterfactual_into(dir, model, o, src, variants, vary); });
-  say("%s", done.c_str());
-  say("outputs in %s: one folder per variant (%s, ...), comparison.png, forces.csv%s", o.out_dir.c_str(),
-      variants[0].folder.c_str(), model.builtin() ? " (synthetic model: forces not meaningful)" : "");
+  const PredictModel model(o, hooks);
+  const ClipOutcome c = predict_clip(model, o, src, o.out_dir, hooks);
+  log_predict_done(hooks, c, model.load_seconds(), model.builtin(), o.out_dir);
   return 0;
 }
 

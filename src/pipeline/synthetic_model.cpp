@@ -10,6 +10,7 @@
 #include "clip_image/clip_vision.h"
 #include "clip_text/clip_text.h"
 #include "core/error.h"
+#include "core/install_dirs.h"
 #include "core/safetensors.h"
 #include "core/synthetic_weights.h"
 #include "core/weights.h"
@@ -245,8 +246,7 @@ std::string shipped_tokenizer_dir() {
       throw Error(std::string("EGOPD_TOKENIZER_DIR=") + env + ": no vocab.json and merges.txt there");
     return env;
   }
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) candidates.push_back(exe.parent_path().parent_path() / "share" / "egopd" / "tokenizer");
+  candidates = installed_data_candidates("tokenizer");
 #ifdef EGOPD_DATA_DIR
   candidates.push_back(fs::path(EGOPD_DATA_DIR) / "tokenizer");
 #endif

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/install_dirs.h"
 
 namespace egopd {
 namespace {
@@ -177,8 +178,7 @@ std::string default_template_path() {
     return env;
   }
   std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (!ec) candidates.push_back(exe.parent_path().parent_path() / "share" / "egopd" / "templates" / kDefaultFile);
+  for (const fs::path& dir : installed_data_candidates("templates")) candidates.push_back(dir / kDefaultFile);
 #ifdef EGOPD_TEMPLATE_DIR
   candidates.push_back(fs::path(EGOPD_TEMPLATE_DIR) / kDefaultFile);
 #endif

@@ -1,0 +1,417 @@
+// The C API (include/egopd.h) on a tiny synthetic model at 64 x 64. Expected taxels come from the `egopd` command's
+// taxels.csv for the same inputs and seed (run as a separate process), compared byte for byte after formatting
+// the API's doubles the way the CSV is written (shortest round trip). Also: frames and masks from memory, the
+// output folder, counterfactuals, bad input (one-line errors, never a crash), cancelling from the progress callback
+// (the model stays usable), two threads on one model, and 50 predictions on one model without growing.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <charconv>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/memory.h"
+#include "egopd.h"
+#include "pipeline/media.h"
+#include "pipeline/synthetic_model.h"
+
+namespace egopd {
+namespace {
+namespace fs = std::filesystem;
+
+fs::path root;
+
+std::string read(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// taxels.csv's layout: header frame,p0..p{M-1}; one row per frame; shortest round-trip decimals.
+std::string taxels_csv(const egopd_result* r) {
+  const int64_t F = egopd_result_frames(r), M = egopd_result_num_taxels(r);
+  std::string out = "frame";
+  for (int64_t m = 0; m < M; ++m) out += ",p" + std::to_string(m);
+  out += '\n';
+  char buf[64];
+  for (int64_t f = 0; f < F; ++f) {
+    out += std::to_string(f);
+    for (int64_t m = 0; m < M; ++m) {
+      const auto c = std::to_chars(buf, buf + sizeof buf, egopd_result_taxels(r)[f * M + m]);
+      out += ',';
+      out.append(buf, c.ptr);
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+// Runs the egopd command; returns its exit status.
+int cli(const std::string& args) {
+  const std::string cmd = std::string(EGOPD_CLI) + " " + args + " >>" + (root / "cli.log").string() + " 2>&1";
+  const int st = std::system(cmd.c_str());
+  return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+const std::string kCommon = " --frames 2 --size 64 --steps 2 --threads 2";
+
+// The CLI's taxels.csv for `args` (run once per distinct args).
+std::string cli_taxels(const std::string& args) {
+  static std::map<std::string, std::string> cache;
+  if (cache.count(args)) return cache[args];
+  const fs::path out = root / ("cli_" + std::to_string(cache.size()));
+  EXPECT_EQ(cli("predict --model " + (root / "model").string() + kCommon + " " + args + " --out " + out.string()), 0)
+      << read(root / "cli.log");
+  return cache[args] = read(out / "taxels.csv");
+}
+
+class Api : public ::testing::Test {
+ protected:
+  static egopd_model* model;
+  static std::vector<uint8_t> frames, masks;
+  static int H, W;
+
+  static void SetUpTestSuite() {
+    root = fs::temp_directory_path() / ("egopd_api_test_" + std::to_string(::getpid()));
+    fs::remove_all(root);
+    fs::create_directories(root / "frames");
+    fs::create_directories(root / "masks");
+    write_synthetic_model((root / "model").string(), "tiny", 7, DType::F32, 0);
+    const auto clip = synthetic_sample_clip(5, 96);
+    H = 96, W = 96;
+    for (size_t i = 0; i < clip.size(); ++i) {
+      cv::Mat bgr;
+      cv::cvtColor(clip[i], bgr, cv::COLOR_RGB2BGR);
+      cv::imwrite((root / "frames" / ("f" + std::to_string(i) + ".png")).string(), bgr);
+    }
+    for (int i = 0; i < 2; ++i) {
+      cv::Mat m(96, 96, CV_8UC1, cv::Scalar(0));
+      cv::circle(m, cv::Point(48 + 8 * i, 60), 25, cv::Scalar(255), cv::FILLED);
+      cv::imwrite((root / "masks" / ("m" + std::to_string(i) + ".png")).string(), m);
+    }
+    // The in-memory copies are what a caller decodes from those files (RGB / grey).
+    for (size_t i = 0; i < clip.size(); ++i) {
+      cv::Mat rgb;
+      cv::cvtColor(cv::imread((root / "frames" / ("f" + std::to_string(i) + ".png")).string()), rgb,
+                   cv::COLOR_BGR2RGB);
+      frames.insert(frames.end(), rgb.data, rgb.data + rgb.total() * 3);
+    }
+    for (int i = 0; i < 2; ++i) {
+      const cv::Mat g = cv::imread((root / "masks" / ("m" + std::to_string(i) + ".png")).string(), cv::IMREAD_GRAYSCALE);
+      masks.insert(masks.end(), g.data, g.data + g.total());
+    }
+    std::ofstream(root / "meta.json") << R"({"obj_name": "a CocaCola", "weight": 355, "material": "aluminum"})";
+    egopd_load_options lo;
+    egopd_load_options_init(&lo);
+    lo.size = 64;
+    lo.threads = 2;
+    ASSERT_EQ(egopd_model_load((root / "model").c_str(), &lo, &model), EGOPD_OK) << egopd_last_error();
+  }
+  static void TearDownTestSuite() {
+    egopd_model_free(model);
+    model = nullptr;
+    fs::remove_all(root);
+  }
+
+  static egopd_predict_options options() {
+    egopd_predict_options o;
+    egopd_predict_options_init(&o);
+    o.num_frames = 2;
+    o.steps = 2;
+    return o;
+  }
+  static void use_memory_frames(egopd_predict_options& o) {
+    o.frames = frames.data();
+    o.frames_bytes = frames.size();
+    o.frames_count = 5, o.frames_height = H, o.frames_width = W;
+  }
+  static std::string predict_csv(const egopd_predict_options& o) {
+    egopd_result* r = nullptr;
+    const egopd_status st = egopd_predict(model, &o, &r);
+    EXPECT_EQ(st, EGOPD_OK) << egopd_last_error();
+    if (st != EGOPD_OK) return "";
+    const std::string csv = taxels_csv(r);
+    egopd_result_free(r);
+    return csv;
+  }
+};
+egopd_model* Api::model = nullptr;
+std::vector<uint8_t> Api::frames, Api::masks;
+int Api::H = 0, Api::W = 0;
+
+TEST_F(Api, FrameFolderMatchesTheCommand) {
+  egopd_predict_options o = options();
+  const std::string video = (root / "frames").string();
+  o.video = video.c_str();
+  o.seed = 3;
+  const std::string want = cli_taxels("--video " + video + " --seed 3");
+  ASSERT_FALSE(want.empty());
+  EXPECT_EQ(predict_csv(o), want);
+}
+
+TEST_F(Api, FramesAndMasksFromMemoryMatchTheCommand) {
+  egopd_predict_options o = options();
+  use_memory_frames(o);
+  o.masks = masks.data();
+  o.masks_bytes = masks.size();
+  o.masks_count = 2, o.masks_height = H, o.masks_width = W;
+  o.prompt = "a hand grasping a can";
+  o.seed = 11;
+  const std::string want = cli_taxels("--video " + (root / "frames").string() + " --masks " +
+                                      (root / "masks").string() + " --seed 11 --prompt 'a hand grasping a can'");
+  ASSERT_FALSE(want.empty());
+  EXPECT_EQ(predict_csv(o), want);
+}
+
+TEST_F(Api, ResultArraysAndOutputFolder) {
+  egopd_predict_options o = options();
+  use_memory_frames(o);
+  o.meta_json = R"({"obj_name": "a CocaCola", "weight": 355, "material": "aluminum"})";
+  const std::string out = (root / "api_out").string();
+  o.out_dir = out.c_str();
+  egopd_result* r = nullptr;
+  ASSERT_EQ(egopd_predict(model, &o, &r), EGOPD_OK) << egopd_last_error();
+  EXPECT_EQ(egopd_result_frames(r), 2);
+  EXPECT_EQ(egopd_result_size(r), 64);
+  EXPECT_EQ(egopd_result_num_taxels(r), 162);
+  EXPECT_EQ(read(fs::path(out) / "taxels.csv"), taxels_csv(r));
+  EXPECT_EQ(read(fs::path(out) / "taxels.csv"),
+            cli_taxels("--video " + (root / "frames").string() + " --meta " + (root / "meta.json").string()));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "heatmap_001.png"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "summary.json"));
+  EXPECT_NE(std::string(egopd_result_summary_json(r)).find("\"prompt\""), std::string::npos);
+  for (int64_t f = 0; f < 2; ++f) {
+    double sum = 0;
+    for (int m = 0; m < 162; ++m) sum += egopd_result_taxels(r)[f * 162 + m];
+    EXPECT_DOUBLE_EQ(egopd_result_total_force(r)[f], sum);
+    for (int64_t i = 0; i < 64 * 64; ++i) {
+      const float h = egopd_result_heatmaps(r)[f * 64 * 64 + i];
+      ASSERT_TRUE(h >= 0 && h <= 1) << h;
+    }
+  }
+  egopd_result_free(r);
+}
+
+TEST_F(Api, CounterfactualMatchesTheCommand) {
+  egopd_predict_options o = options();
+  const std::string video = (root / "frames").string(), meta = (root / "meta.json").string();
+  o.video = video.c_str();
+  o.meta_path = meta.c_str();
+  const char* values[] = {"1000", "omit"};
+  egopd_result* r[2] = {nullptr, nullptr};
+  ASSERT_EQ(egopd_counterfactual(model, &o, "weight", values, 2, r), EGOPD_OK) << egopd_last_error();
+  const fs::path out = root / "cli_cf";
+  ASSERT_EQ(cli("counterfactual --model " + (root / "model").string() + kCommon + " --video " + video + " --meta " +
+                meta + " --vary weight=1000,omit --out " + out.string()),
+            0)
+      << read(root / "cli.log");
+  EXPECT_EQ(std::string(egopd_result_variant_folder(r[0])), "weight_1000g");
+  EXPECT_EQ(std::string(egopd_result_variant_value(r[1])), "omit");
+  EXPECT_EQ(taxels_csv(r[0]), read(out / "weight_1000g" / "taxels.csv"));
+  EXPECT_EQ(taxels_csv(r[1]), read(out / "weight_omit" / "taxels.csv"));
+  egopd_result_free(r[0]);
+  egopd_result_free(r[1]);
+}
+
+// One line naming what is wrong, the given status, and no result.
+void expect_error(egopd_status got, egopd_status want, const std::string& needle, egopd_result* r = nullptr) {
+  EXPECT_EQ(got, want) << egopd_last_error();
+  const std::string msg = egopd_last_error();
+  EXPECT_NE(msg.find(needle), std::string::npos) << msg;
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  EXPECT_EQ(r, nullptr);
+}
+
+TEST_F(Api, BadInputIsAnErrorNeverACrash) {
+  egopd_result* r = nullptr;
+  egopd_predict_options o = options();
+  expect_error(egopd_predict(nullptr, &o, &r), EGOPD_ERROR_ARGUMENT, "model: null handle", r);
+  expect_error(egopd_predict(model, &o, nullptr), EGOPD_ERROR_ARGUMENT, "result: null pointer");
+
+  use_memory_frames(o);
+  o.frames_bytes -= 1;
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "frames: buffer of 138239 bytes", r);
+  o = options();
+  o.frames_count = 3;  // no buffer
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "frames: null buffer", r);
+  o = options();
+  use_memory_frames(o);
+  o.masks = masks.data();
+  o.masks_bytes = masks.size();
+  o.masks_count = 2, o.masks_height = W, o.masks_width = 0;
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "masks: count, height and width", r);
+  o.masks_width = W, o.num_frames = 3;  // 2 masks for 3 sampled frames of 5
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR, "2 mask images but 3 sampled frames", r);
+
+  o = options();
+  o.steps = 5000;
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "--steps must be between 1 and 1000", r);
+  o = options();
+  o.video = "/nonexistent/clip.mp4";
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "/nonexistent/clip.mp4", r);
+  o = options();
+  o.prompt = "x";
+  o.meta_json = "{}";
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "either --prompt or --meta", r);
+  o = options();
+  o.meta_json = "{\"weight\": ";
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "meta_json: metadata is not valid JSON", r);
+  o = options();
+  o.struct_size = sizeof o + 8;
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "struct_size", r);
+  o = options();
+  o.sampler = "ddim";
+  expect_error(egopd_predict(model, &o, &r), EGOPD_ERROR_ARGUMENT, "--sampler must be euler or lcm", r);
+
+  egopd_result* cf[1] = {nullptr};
+  o = options();
+  const char* values[] = {"1"};
+  expect_error(egopd_counterfactual(model, &o, "colour", values, 1, cf), EGOPD_ERROR_ARGUMENT, "unknown field 'colour'");
+  expect_error(egopd_counterfactual(model, &o, "weight", nullptr, 1, cf), EGOPD_ERROR_ARGUMENT, "values: null");
+
+  egopd_model* m = nullptr;
+  egopd_load_options lo;
+  egopd_load_options_init(&lo);
+  lo.precision = "fp16";
+  expect_error(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT, "not supported yet");
+  EXPECT_EQ(m, nullptr);
+  lo.precision = "fp32";
+  expect_error(egopd_model_load((root / "frames").c_str(), &lo, &m), EGOPD_ERROR, "not a model directory");
+  expect_error(egopd_model_load((root / "missing").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT, "does not exist");
+  lo.size = 96;
+  expect_error(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT, "--size");
+  expect_error(egopd_model_load((root / "model").c_str(), &lo, nullptr), EGOPD_ERROR_ARGUMENT, "null pointer");
+
+  // The model is still fine after all of that.
+  o = options();
+  o.video = nullptr;
+  EXPECT_FALSE(predict_csv(o).empty());
+}
+
+struct CancelAt {
+  int step;
+  std::vector<std::string> seen;
+};
+int cancel_at(void* user, const egopd_progress* p) {
+  auto* c = static_cast<CancelAt*>(user);
+  c->seen.push_back(std::string(p->stage) + (p->steps ? " " + std::to_string(p->step) + "/" + std::to_string(p->steps) : ""));
+  return std::string(p->stage) == "denoise" && p->step == c->step;
+}
+
+TEST_F(Api, ProgressReportsStagesAndCancelLeavesTheModelUsable) {
+  egopd_predict_options o = options();
+  const std::string video = (root / "frames").string(), out = (root / "cancelled").string();
+  o.video = video.c_str();
+  o.seed = 3;
+  o.out_dir = out.c_str();
+  CancelAt c{1, {}};
+  o.progress = cancel_at;
+  o.progress_user = &c;
+  egopd_result* r = nullptr;
+  expect_error(egopd_predict(model, &o, &r), EGOPD_CANCELLED, "cancelled by the progress callback at denoise step 1 of 2",
+               r);
+  EXPECT_FALSE(fs::exists(out));  // nothing half-written
+  for (const auto& e : fs::directory_iterator(root))
+    EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+
+  c = CancelAt{-1, {}};  // never cancels: the next call on the same model gives the command's taxels
+  ASSERT_EQ(egopd_predict(model, &o, &r), EGOPD_OK) << egopd_last_error();
+  EXPECT_EQ(taxels_csv(r), cli_taxels("--video " + video + " --seed 3"));
+  egopd_result_free(r);
+  const std::vector<std::string> want = {"encode", "denoise 1/2", "denoise 2/2", "decode", "write"};
+  EXPECT_EQ(c.seen, want);
+}
+
+struct Reentry {
+  egopd_model* model;
+  egopd_status status = EGOPD_OK;
+  std::string message;
+};
+int call_again(void* user, const egopd_progress*) {
+  auto* e = static_cast<Reentry*>(user);
+  egopd_predict_options o;
+  egopd_predict_options_init(&o);
+  egopd_result* r = nullptr;
+  e->status = egopd_predict(e->model, &o, &r);
+  e->message = egopd_last_error();
+  egopd_result_free(r);
+  return 1;
+}
+
+TEST_F(Api, PredictFromInsideTheCallbackIsRefused) {
+  egopd_predict_options o = options();
+  Reentry e{model, EGOPD_OK, {}};
+  o.progress = call_again;
+  o.progress_user = &e;
+  egopd_result* r = nullptr;
+  EXPECT_EQ(egopd_predict(model, &o, &r), EGOPD_CANCELLED);
+  EXPECT_EQ(e.status, EGOPD_ERROR_ARGUMENT);
+  EXPECT_NE(e.message.find("cannot be called from inside a progress or log callback"), std::string::npos) << e.message;
+}
+
+TEST_F(Api, TwoThreadsOnOneModel) {
+  const std::string video = (root / "frames").string();
+  const std::string want3 = cli_taxels("--video " + video + " --seed 3"), want5 = cli_taxels("--video " + video + " --seed 5");
+  std::string got3, got5;
+  const auto run = [&](uint64_t seed, std::string* out) {
+    for (int k = 0; k < 2; ++k) {
+      egopd_predict_options o = options();
+      o.video = video.c_str();
+      o.seed = seed;
+      *out = predict_csv(o);
+      if (out->empty()) return;
+    }
+  };
+  std::thread a(run, 3, &got3), b(run, 5, &got5);
+  a.join();
+  b.join();
+  EXPECT_EQ(got3, want3);
+  EXPECT_EQ(got5, want5);
+  EXPECT_NE(want3, want5);
+}
+
+TEST_F(Api, AnotherSizeReloadsTheModel) {
+  egopd_predict_options o = options();
+  const std::string video = (root / "frames").string();
+  o.video = video.c_str();
+  o.size = 128;
+  egopd_result* r = nullptr;
+  ASSERT_EQ(egopd_predict(model, &o, &r), EGOPD_OK) << egopd_last_error();
+  EXPECT_EQ(egopd_result_size(r), 128);
+  egopd_result_free(r);
+  o.size = 64;
+  o.seed = 3;
+  EXPECT_EQ(predict_csv(o), cli_taxels("--video " + video + " --seed 3"));
+}
+
+// 50 predictions on one model: memory stays flat after the first few (arenas reach their size on the first run).
+// Under AddressSanitizer freed memory is held in quarantine, so there LeakSanitizer checks the leaks instead.
+TEST_F(Api, FiftyPredictionsDoNotGrow) {
+  egopd_predict_options o = options();
+  use_memory_frames(o);
+  o.steps = 1;
+  int64_t rss_after_10 = 0;
+  for (int k = 0; k < 50; ++k) {
+    o.seed = uint64_t(k);
+    egopd_result* r = nullptr;
+    ASSERT_EQ(egopd_predict(model, &o, &r), EGOPD_OK) << egopd_last_error();
+    egopd_result_free(r);
+    if (k == 9) rss_after_10 = int64_t(current_rss_bytes());
+  }
+  const int64_t growth = int64_t(current_rss_bytes()) - rss_after_10;
+#if defined(__SANITIZE_ADDRESS__)
+  (void)growth;
+#else
+  EXPECT_LT(growth, int64_t(4) << 20) << "RSS grew by " << growth << " bytes over 40 predictions";
+#endif
+}
+
+}  // namespace
+}  // namespace egopd
