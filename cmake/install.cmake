@@ -33,7 +33,8 @@ if(EGOPD_BUILD_SHARED)
   # The Python module (python/egopd) finds the library at PREFIX/lib*/libegopd.so.0 relative to itself.
   find_package(Python3 COMPONENTS Interpreter)
   if(Python3_FOUND)
-    set(EGOPD_PYTHON_DIR "${CMAKE_INSTALL_LIBDIR}/python3/dist-packages" CACHE STRING
+    # Debian's python3 searches /usr/local/lib/python3.X/dist-packages; other prefixes go on PYTHONPATH.
+    set(EGOPD_PYTHON_DIR "lib/python${Python3_VERSION_MAJOR}.${Python3_VERSION_MINOR}/dist-packages" CACHE STRING
         "Where `cmake --install` puts the Python module egopd (relative to the prefix)")
     install(DIRECTORY ${CMAKE_SOURCE_DIR}/python/egopd DESTINATION ${EGOPD_PYTHON_DIR}
             PATTERN "__pycache__" EXCLUDE)

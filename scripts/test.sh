@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# The test command: install what is missing, build (Release), run every unit and golden test; then build the tests
-# again with AddressSanitizer + UndefinedBehaviorSanitizer in build-asan/ and run them there too; then fuzz every
-# parser for a bounded time (scripts/fuzz.sh) and run a Slurm job array on a one-node local cluster
-# (tests/slurm/slurm_test.sh).
+# The test command: install what is missing, build (Release), run every unit and golden test; install the build into
+# a temporary prefix and build and run the C example and the Python module's tests against it
+# (tests/install/install_test.sh); then build the tests again with AddressSanitizer + UndefinedBehaviorSanitizer in
+# build-asan/ and run them there too; then fuzz every parser for a bounded time (scripts/fuzz.sh) and run a Slurm job
+# array on a one-node local cluster (tests/slurm/slurm_test.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -12,6 +13,10 @@ export OMP_WAIT_POLICY=passive
 
 ./scripts/build.sh
 ctest --test-dir build --output-on-failure -j"$jobs"
+
+echo "== install: the C example against an installed prefix (pkg-config, find_package), the Python module =="
+./scripts/install-packages.sh python3 python3-numpy python3-pytest python3-matplotlib python3-pip python3-setuptools
+tests/install/install_test.sh build build/install_test_work
 
 echo "== sanitizer build (ASan + UBSan) =="
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF >/dev/null
