@@ -2,6 +2,12 @@
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <cpuid.h>
+#elif defined(__aarch64__) && defined(__linux__)
+#include <sys/auxv.h>
+
+#include <fstream>
+#elif defined(__aarch64__) && defined(__APPLE__)
+#include <sys/sysctl.h>
 #endif
 
 #include <algorithm>
@@ -83,11 +89,101 @@ CpuInfo detect() {
     read_caches(4, ci);
   return ci;
 }
+#elif defined(__aarch64__)
+#if defined(__linux__)
+std::string read_line(const std::string& path) {
+  std::ifstream f(path);
+  std::string s;
+  std::getline(f, s);
+  return s;
+}
+
+// "48K", "1024K", "8M" (sysfs cache sizes) in bytes; 0 when unreadable.
+int64_t parse_size(const std::string& s) {
+  char* end = nullptr;
+  const long long v = std::strtoll(s.c_str(), &end, 10);
+  if (v <= 0 || !end) return 0;
+  return *end == 'K' ? v * 1024 : *end == 'M' ? v * 1024 * 1024 : v;
+}
+
+// Core name from MIDR_EL1 (implementer and part number) for the cores egopd is tried on; empty otherwise.
+std::string core_name(unsigned long midr) {
+  const unsigned implementer = (midr >> 24) & 0xff, part = (midr >> 4) & 0xfff;
+  if (implementer == 0x41) {  // Arm
+    switch (part) {
+      case 0xd03: return "Arm Cortex-A53";
+      case 0xd05: return "Arm Cortex-A55";
+      case 0xd08: return "Arm Cortex-A72";
+      case 0xd0b: return "Arm Cortex-A76";
+      case 0xd0c: return "Arm Neoverse N1";
+      case 0xd40: return "Arm Neoverse V1";
+      case 0xd41: return "Arm Cortex-A78";
+      case 0xd42: return "Arm Cortex-A78AE";
+      case 0xd49: return "Arm Neoverse N2";
+      case 0xd4f: return "Arm Neoverse V2";
+      default: break;
+    }
+  }
+  return "";
+}
+
+CpuInfo detect() {
+  CpuInfo ci;
+  ci.neon = true;  // Advanced SIMD is mandatory in AArch64 Linux's ABI
+  const unsigned long hw = getauxval(AT_HWCAP);
+  // HWCAP bits of arch/arm64/include/uapi/asm/hwcap.h: fphp 9, asimdhp 10, asimddp 20.
+  ci.neon_fp16 = (hw & (1ul << 9)) && (hw & (1ul << 10));
+  ci.neon_dotprod = hw & (1ul << 20);
+  const std::string cpu0 = "/sys/devices/system/cpu/cpu0/";
+  const std::string midr = read_line(cpu0 + "regs/identification/midr_el1");
+  if (!midr.empty()) ci.model = core_name(std::strtoul(midr.c_str(), nullptr, 16));
+  for (int i = 0; i < 8; ++i) {
+    const std::string dir = cpu0 + "cache/index" + std::to_string(i) + "/";
+    const std::string type = read_line(dir + "type"), level = read_line(dir + "level");
+    if (type.empty()) break;
+    if (type == "Instruction") continue;
+    const int64_t size = parse_size(read_line(dir + "size"));
+    if (level == "1") ci.l1d = size;
+    if (level == "2") ci.l2 = size;
+    if (level == "3") ci.l3 = size;
+  }
+  return ci;
+}
+#elif defined(__APPLE__)
+int64_t sysctl_int(const char* name) {
+  int64_t v = 0;
+  size_t len = sizeof(v);
+  return sysctlbyname(name, &v, &len, nullptr, 0) == 0 ? v : 0;
+}
+
+CpuInfo detect() {
+  CpuInfo ci;
+  ci.neon = true;
+  ci.neon_fp16 = sysctl_int("hw.optional.arm.FEAT_FP16") != 0;
+  ci.neon_dotprod = sysctl_int("hw.optional.arm.FEAT_DotProd") != 0;
+  char brand[128] = {};
+  size_t len = sizeof(brand) - 1;
+  if (sysctlbyname("machdep.cpu.brand_string", brand, &len, nullptr, 0) == 0) ci.model = brand;
+  // The performance cores' caches (the kernels' threads run there).
+  ci.l1d = sysctl_int("hw.perflevel0.l1dcachesize");
+  ci.l2 = sysctl_int("hw.perflevel0.l2cachesize");
+  return ci;
+}
+#else
+CpuInfo detect() {
+  CpuInfo ci;
+  ci.neon = true;
+  return ci;
+}
+#endif
 #else
 CpuInfo detect() { return CpuInfo{}; }
 #endif
 
+constexpr KernelPath kAllPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512, KernelPath::Neon};
+
 KernelPath best_path(const CpuInfo& ci) {
+  if (ci.neon) return KernelPath::Neon;
   if (ci.avx512) return KernelPath::Avx512;
   if (ci.avx2_fma_f16c) return KernelPath::Avx2;
   return KernelPath::Portable;
@@ -96,13 +192,13 @@ KernelPath best_path(const CpuInfo& ci) {
 KernelPath path_from_environment() {
   const CpuInfo& ci = cpu_info();
   if (const char* e = std::getenv("EGOPD_KERNELS"); e && *e) {
-    for (KernelPath p : {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512})
+    for (KernelPath p : kAllPaths)
       if (std::strcmp(e, kernel_path_name(p)) == 0) {
         if (!kernel_path_supported(p))
           throw Error(std::string("EGOPD_KERNELS=") + e + ": this CPU does not support " + kernel_path_features(p));
         return p;
       }
-    throw Error(std::string("EGOPD_KERNELS=") + e + ": unknown kernel path (avx512, avx2 or portable)");
+    throw Error(std::string("EGOPD_KERNELS=") + e + ": unknown kernel path (avx512, avx2, neon or portable)");
   }
   const char* portable = std::getenv("EGOPD_PORTABLE");
   if (portable && *portable && std::strcmp(portable, "0") != 0) return KernelPath::Portable;
@@ -122,6 +218,7 @@ const char* kernel_path_name(KernelPath p) {
   switch (p) {
     case KernelPath::Avx512: return "avx512";
     case KernelPath::Avx2: return "avx2";
+    case KernelPath::Neon: return "neon";
     default: return "portable";
   }
 }
@@ -130,6 +227,13 @@ std::string kernel_path_features(KernelPath p) {
   switch (p) {
     case KernelPath::Avx512: return "avx512f+bw+vl+dq";
     case KernelPath::Avx2: return "avx2+fma+f16c";
+    case KernelPath::Neon: {
+      // The ARMv8.2 extensions are reported only: the kernels use the ARMv8.0-A instructions.
+      std::string f = "neon (asimd)";
+      if (cpu_info().neon_fp16) f += "+fp16";
+      if (cpu_info().neon_dotprod) f += "+dotprod";
+      return f;
+    }
     default: return "scalar";
   }
 }
@@ -138,13 +242,14 @@ bool kernel_path_supported(KernelPath p) {
   switch (p) {
     case KernelPath::Avx512: return cpu_info().avx512;
     case KernelPath::Avx2: return cpu_info().avx2_fma_f16c;
+    case KernelPath::Neon: return cpu_info().neon;
     default: return true;
   }
 }
 
 std::vector<KernelPath> supported_kernel_paths() {
   std::vector<KernelPath> v;
-  for (KernelPath p : {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512})
+  for (KernelPath p : kAllPaths)
     if (kernel_path_supported(p)) v.push_back(p);
   return v;
 }

@@ -1,7 +1,8 @@
 #pragma once
 // What the CPU offers (instruction sets, cache sizes, model name) and the kernel path chosen from it once at
-// start-up: avx512 (F+BW+VL+DQ), avx2 (AVX2+FMA+F16C) or portable. EGOPD_KERNELS=avx512|avx2|portable forces one
-// (EGOPD_PORTABLE=1 is the older spelling of EGOPD_KERNELS=portable); forcing a path the CPU lacks is an error.
+// start-up: avx512 (F+BW+VL+DQ), avx2 (AVX2+FMA+F16C) or portable on x86-64, neon (Advanced SIMD, ARMv8.0-A) or
+// portable on AArch64. EGOPD_KERNELS=avx512|avx2|neon|portable forces one (EGOPD_PORTABLE=1 is the older spelling
+// of EGOPD_KERNELS=portable); forcing a path the CPU lacks is an error.
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -14,15 +15,18 @@ struct CpuInfo {
   bool avx512 = false;       // F + BW + VL + DQ, with the OS saving the ZMM state
   bool avx512_bf16 = false;  // vdpbf16ps
   bool avx512_vnni = false;  // vpdpbusd
+  bool neon = false;         // AArch64 Advanced SIMD (every AArch64 CPU)
+  bool neon_fp16 = false;    // ARMv8.2 FP16 arithmetic (HWCAP fphp + asimdhp); reported only
+  bool neon_dotprod = false; // ARMv8.2 dot product (HWCAP asimddp); reported only
   // Per-core data caches in bytes (0 when unknown; the kernels then assume 32 KiB / 512 KiB / 16 MiB).
   int64_t l1d = 0, l2 = 0, l3 = 0;
 };
 const CpuInfo& cpu_info();
 
-enum class KernelPath : uint8_t { Portable, Avx2, Avx512 };
+enum class KernelPath : uint8_t { Portable, Avx2, Avx512, Neon };
 
-const char* kernel_path_name(KernelPath p);      // "portable", "avx2", "avx512"
-std::string kernel_path_features(KernelPath p);  // "avx512f+bw+vl+dq", "avx2+fma+f16c", "scalar"
+const char* kernel_path_name(KernelPath p);      // "portable", "avx2", "avx512", "neon"
+std::string kernel_path_features(KernelPath p);  // "avx512f+bw+vl+dq", "avx2+fma+f16c", "neon (asimd)", "scalar"
 bool kernel_path_supported(KernelPath p);
 std::vector<KernelPath> supported_kernel_paths();  // every path this CPU runs, best last
 KernelPath kernel_path();                          // the path in use
@@ -32,6 +36,9 @@ void set_kernel_path(KernelPath p);
 
 // Transitional helpers: the AVX2 kernels also serve the avx512 path where it has none of its own.
 inline bool cpu_has_avx2_fma_f16c() { return cpu_info().avx2_fma_f16c; }
-inline bool use_avx2() { return kernel_path() != KernelPath::Portable; }
+inline bool use_avx2() { return kernel_path() == KernelPath::Avx2 || kernel_path() == KernelPath::Avx512; }
+// A SIMD path is in use: the element-wise, norm and attention kernels of this architecture's SIMD folder (avx2/ on
+// x86-64, neon/ on AArch64) apply.
+inline bool use_simd() { return kernel_path() != KernelPath::Portable; }
 
 }  // namespace egopd

@@ -193,6 +193,8 @@ TEST_P(ConvTest, Same3x3) {
   EXPECT_EQ(run_conv({2, 4, 5, 2, 3, 3, 1, 1}, 15), 0);
   EXPECT_EQ(run_conv({3, 3, 7, 50, 50, 3, 1, 1}, 16), 0);  // column blocks end inside frames
   EXPECT_EQ(run_conv({1, 5, 60, 5, 7, 3, 1, 1}, 17), 0);    // cout > pixels: rows split across threads
+  EXPECT_EQ(run_conv({2, 5, 8, 3, 8, 3, 1, 1}, 18), 0);    // 24 pixels: whole 12-column panels across rows
+  EXPECT_EQ(run_conv({1, 3, 9, 4, 5, 3, 1, 1}, 19), 0);    // 20 pixels: a 12-column panel and a tail of 8
 }
 
 TEST_P(ConvTest, Strided3x3) {

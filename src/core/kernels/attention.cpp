@@ -12,12 +12,19 @@
 
 namespace egopd {
 
+#if defined(__aarch64__)
+namespace neon {  // neon/attention.cpp: attend_row below, vectorised
+void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, int64_t v_ld, int64_t nk, int64_t dh,
+                float scale, float* p, float* out);
+}  // namespace neon
+#else
 namespace avx2 {  // avx2/attention.cpp
 int64_t attention_tile_queries();
 int64_t attention_tile_workspace(int64_t dh);
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
 void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq);
 }  // namespace avx2
+#endif
 
 namespace {
 
@@ -52,6 +59,7 @@ void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, in
   for (int64_t d = 0; d < dh; ++d) out[d] *= inv;
 }
 
+#if !defined(__aarch64__)
 // Blocked AVX2 kernel: units of (batch, head, query tile), each thread with its own workspace.
 void attention_avx2(const AttentionArgs& a) {
   const int64_t kTile = avx2::attention_tile_queries();
@@ -76,13 +84,19 @@ void attention_avx2(const AttentionArgs& a) {
     }
   }
 }
+#endif
 
 }  // namespace
 
 void attention(const AttentionArgs& a) {
   EGOPD_CHECK(a.lq > 0 && a.lk > 0 && a.dh > 0, "attention: empty shape");
   EGOPD_CHECK(!a.causal || a.lq == a.lk, "attention: causal mask needs lq == lk");
-  if (use_avx2()) return attention_avx2(a);
+#if defined(__aarch64__)
+  const auto row_fn = use_simd() ? neon::attend_row : attend_row;
+#else
+  if (use_simd()) return attention_avx2(a);
+  const auto row_fn = attend_row;
+#endif
   const int64_t units = a.batch * a.heads * a.lq;
   const bool par = !omp_in_parallel() && units * a.lk * a.dh >= (1 << 16);
 #pragma omp parallel if (par)
@@ -93,7 +107,7 @@ void attention(const AttentionArgs& a) {
       const int64_t i = u % a.lq, h = (u / a.lq) % a.heads, b = u / (a.lq * a.heads);
       const int64_t off = h * a.dh;
       const int64_t nk = a.causal ? i + 1 : a.lk;
-      attend_row(a.q + b * a.q_bs + i * a.q_ld + off, a.k + b * a.k_bs + off, a.k_ld, a.v + b * a.v_bs + off,
+      row_fn(a.q + b * a.q_bs + i * a.q_ld + off, a.k + b * a.k_bs + off, a.k_ld, a.v + b * a.v_bs + off,
                  a.v_ld, nk, a.dh, a.scale, scores.data(), a.out + b * a.out_bs + i * a.out_ld + off);
     }
   }

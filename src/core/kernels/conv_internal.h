@@ -16,14 +16,39 @@ struct ShiftGeom {
 // masks[ky*kw + kx] bit j: column n0 + j (j < nr <= 32) reads inside the frame for that tap.
 void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint32_t* masks);
 
+// The rows k0, k0+1, ... of a shift-packed B panel in order: next() returns the shifted frame row's first column
+// (column n0) and sets the mask of the columns j < nr that read inside the frame (bit j; the others must be zero).
+class ShiftRows {
+ public:
+  ShiftRows(const float* xf, const ShiftGeom& s, int64_t k0, int64_t n0, int nr)
+      : xf_(xf), taps_(s.kh * s.kw), plane_(s.h * s.w), c_(k0 / taps_), t_(k0 % taps_) {
+    shift_masks(s, n0, nr, masks_);
+    for (int64_t t = 0; t < taps_; ++t) offs_[t] = n0 + (t / s.kw - s.ph) * s.w + (t % s.kw - s.pw);
+  }
+  const float* next(uint32_t* mask) {
+    const float* src = xf_ + c_ * plane_ + offs_[t_];
+    *mask = masks_[t_];
+    if (++t_ == taps_) t_ = 0, ++c_;
+    return src;
+  }
+
+ private:
+  const float* xf_;
+  int64_t taps_, plane_, c_, t_;
+  uint32_t masks_[kMaxTaps];
+  int64_t offs_[kMaxTaps];
+};
+
 // dst[k*NR + j] = col(k0 + k, n0 + j) of frame xf [cin, h, w]; columns >= nr are zero. NR is the path's: 16 for
-// portable and avx2, 32 for avx512.
+// portable and avx2, 32 for avx512, 12 for neon.
 void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                                 float* dst);
 void pack_im2col_shift_avx2(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                             float* dst);
 void pack_im2col_shift_avx512(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
                               float* dst);
+void pack_im2col_shift_neon(const float* xf, const ShiftGeom& s, int64_t k0, int64_t kc, int64_t n0, int nr,
+                            float* dst);
 
 // Temporal conv weight W [cout, cin, 3] (F32/F16/BF16): 6 rows m0.. of the A micro-panel for the columns of one
 // tap, dst[k*6 + i] = W[m0 + i, c0 + k, tap] for k < len. Returns the k handled (a multiple of 8; the caller

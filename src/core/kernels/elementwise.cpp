@@ -8,10 +8,13 @@
 
 #include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/simd_namespace.h"
 
 namespace egopd {
 
-namespace avx2 {  // avx2/elementwise.cpp: serial kernels on contiguous spans
+// The SIMD kernels of this architecture: avx2/elementwise.cpp on x86-64 (avx2 and avx512 paths), neon/elementwise.cpp
+// on AArch64; serial kernels on contiguous spans.
+namespace EGOPD_SIMD_NS {
 void silu_inplace(float* x, int64_t n);
 void gelu_inplace(float* x, int64_t n);
 void quick_gelu_inplace(float* x, int64_t n);
@@ -19,7 +22,9 @@ void erf_inplace(float* x, int64_t n);
 void geglu_row(const float* a, const float* g, int64_t d, float* out);
 void blend_inplace(float* y, const float* x, float a, int64_t n);
 void add_inplace(float* y, const float* x, int64_t n);
-}  // namespace avx2
+}  // namespace EGOPD_SIMD_NS
+namespace simd = EGOPD_SIMD_NS;
+#undef EGOPD_SIMD_NS
 
 namespace {
 
@@ -53,42 +58,42 @@ float gelu_scalar(float x) {
 }  // namespace
 
 void silu_inplace(float* x, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::silu_inplace(x + b, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::silu_inplace(x + b, e - b); });
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.0f);
   });
 }
 
 void gelu_inplace(float* x, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::gelu_inplace(x + b, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::gelu_inplace(x + b, e - b); });
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x[i] = gelu_scalar(x[i]);
   });
 }
 
 void quick_gelu_inplace(float* x, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::quick_gelu_inplace(x + b, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::quick_gelu_inplace(x + b, e - b); });
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.702f);
   });
 }
 
 void erf_inplace(float* x, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::erf_inplace(x + b, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::erf_inplace(x + b, e - b); });
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) x[i] = std::erf(x[i]);
   });
 }
 
 void geglu(const float* p, int64_t rows, int64_t d, float* out) {
-  const bool vec = use_avx2();
+  const bool vec = use_simd();
 #pragma omp parallel for schedule(static) if (run_parallel(rows * d))
   for (int64_t r = 0; r < rows; ++r) {
     const float* a = p + r * 2 * d;  // [rows, 2d]: value half, then gate half
     const float* g = a + d;
     float* o = out + r * d;
     if (vec) {
-      avx2::geglu_row(a, g, d, o);
+      simd::geglu_row(a, g, d, o);
     } else {
       for (int64_t i = 0; i < d; ++i) o[i] = a[i] * gelu_scalar(g[i]);
     }
@@ -125,7 +130,7 @@ void timestep_embedding(const float* t, int64_t n, int64_t dim, float* out) {
 }
 
 void blend_inplace(float* y, const float* x, float a, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::blend_inplace(y + b, x + b, a, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::blend_inplace(y + b, x + b, a, e - b); });
   const float c = 1.0f - a;
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) y[i] = a * x[i] + c * y[i];
@@ -133,7 +138,7 @@ void blend_inplace(float* y, const float* x, float a, int64_t n) {
 }
 
 void add_inplace(float* y, const float* x, int64_t n) {
-  if (use_avx2()) return for_chunks(n, [&](int64_t b, int64_t e) { avx2::add_inplace(y + b, x + b, e - b); });
+  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::add_inplace(y + b, x + b, e - b); });
   for_chunks(n, [&](int64_t b, int64_t e) {
     for (int64_t i = b; i < e; ++i) y[i] += x[i];
   });

@@ -9,6 +9,8 @@
 
 #if defined(__x86_64__)
 #include <immintrin.h>
+#elif defined(__aarch64__)
+#include <arm_neon.h>
 #endif
 
 namespace egopd {
@@ -47,6 +49,21 @@ __attribute__((target("avx2,fma"))) float fma_loop_avx2(int64_t iters) {
 }
 #endif
 
+#if defined(__aarch64__)
+float fma_loop_neon(int64_t iters) {
+  float32x4_t acc[kChains];
+  for (int i = 0; i < kChains; ++i) acc[i] = vdupq_n_f32(float(i) * 1e-3f);
+  const float32x4_t m = vdupq_n_f32(0.9999f), c = vdupq_n_f32(1e-4f);
+  for (int64_t it = 0; it < iters; ++it) {
+#pragma GCC unroll 12
+    for (int i = 0; i < kChains; ++i) acc[i] = vfmaq_f32(c, acc[i], m);
+  }
+  float32x4_t s = acc[0];
+  for (int i = 1; i < kChains; ++i) s = vaddq_f32(s, acc[i]);
+  return vaddvq_f32(s);
+}
+#endif
+
 float fma_loop_scalar(int64_t iters) {
   float acc[kChains];
   for (int i = 0; i < kChains; ++i) acc[i] = float(i) * 1e-3f;
@@ -57,12 +74,16 @@ float fma_loop_scalar(int64_t iters) {
   return s;
 }
 
-int lanes(KernelPath p) { return p == KernelPath::Avx512 ? 16 : p == KernelPath::Avx2 ? 8 : 1; }
+int lanes(KernelPath p) {
+  return p == KernelPath::Avx512 ? 16 : p == KernelPath::Avx2 ? 8 : p == KernelPath::Neon ? 4 : 1;
+}
 
 float run(KernelPath p, int64_t iters) {
 #if defined(__x86_64__)
   if (p == KernelPath::Avx512) return fma_loop_avx512(iters);
   if (p == KernelPath::Avx2) return fma_loop_avx2(iters);
+#elif defined(__aarch64__)
+  if (p == KernelPath::Neon) return fma_loop_neon(iters);
 #endif
   return fma_loop_scalar(iters);
 }

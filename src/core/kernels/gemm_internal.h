@@ -21,6 +21,7 @@ namespace egopd::gemm_detail {
 constexpr int kMrPortable = 6, kNrPortable = 16;
 constexpr int kMrAvx2 = 6, kNrAvx2 = 16;     // 12 ymm accumulators
 constexpr int kMrAvx512 = 12, kNrAvx512 = 32;  // 24 zmm accumulators: 2 B loads and 12 broadcasts per 24 FMAs
+constexpr int kMrNeon = 8, kNrNeon = 12;       // 24 q-register accumulators: 2 A + 3 B loads per 24 FMLAs
 constexpr int kMaxNR = 32;
 
 // What the micro-kernel does with its MR x NR sum S when storing it to C:
@@ -75,7 +76,10 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
                       int mr, int nr, const TileEpilogue& ep);
 void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                         int64_t ldc, int mr, int nr, const TileEpilogue& ep);
-// Scalar epilogue of one tile from an MR x 16 sum (row stride 16); the portable and AVX2 paths' partial tiles.
+void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
+                      int mr, int nr, const TileEpilogue& ep);
+// Scalar epilogue of one tile from an MR x 16 sum (row stride 16); the partial tiles of the portable, AVX2 and
+// NEON paths.
 void store_tile_scalar(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 
 // Source of the A operand [M, K]: in place (F32 row-major) or packed MR rows at a time.
@@ -139,5 +143,9 @@ void pack_b_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
                    float* dst);
 void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                    float* dst);
+void pack_b_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                 float* dst);
+void pack_a_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                 float* dst);
 
 }  // namespace egopd::gemm_detail

@@ -18,7 +18,7 @@ int64_t env_int(const char* name, int64_t fallback) {
 }
 
 // Blocking from the cache sizes (EGOPD_GEMM_KC / EGOPD_GEMM_MC override KC and MC for tuning experiments):
-//  * L1-bound paths (portable, AVX2): a KC x NR B micro-panel fills 3/4 of L1 (it is reused by every A micro-panel
+//  * L1-bound paths (portable, AVX2, NEON): a KC x NR B micro-panel fills 3/4 of L1 (it is reused by every A micro-panel
 //    of a block, which stream from L2), at most 512; an MC x KC A block fills 9/16 of L2. On a 32 KiB L1 / 512 KiB
 //    L2 core this gives the 384 / 192 the AVX2 path was tuned with.
 //  * The AVX-512 path computes twice as fast per cycle, so re-reading C between K passes costs more than keeping
@@ -58,6 +58,12 @@ const GemmPath& gemm_path(KernelPath which) {
                                                true);
   if (which == KernelPath::Avx512) return avx512;
   if (which == KernelPath::Avx2) return avx2;
+#elif defined(__aarch64__)
+  // A is always packed (an 8-row column is two loads; in place it would be eight).
+  static const GemmPath neon = with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon,
+                                              pack_im2col_shift_neon, nullptr},
+                                             false);
+  if (which == KernelPath::Neon) return neon;
 #endif
   return portable;
 }

@@ -8,15 +8,19 @@
 
 #include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/simd_namespace.h"
 
 namespace egopd {
 
-namespace avx2 {  // avx2/norm.cpp
+// The SIMD kernels of this architecture: avx2/norm.cpp on x86-64 (avx2 and avx512 paths), neon/norm.cpp on AArch64.
+namespace EGOPD_SIMD_NS {
 void shifted_sums(const float* x, int64_t n, double shift, double* sum, double* sumsq);
 void affine_span(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);
 void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps);
 void softmax_row(float* x, int64_t n);
-}  // namespace avx2
+}  // namespace EGOPD_SIMD_NS
+namespace simd = EGOPD_SIMD_NS;
+#undef EGOPD_SIMD_NS
 
 namespace {
 
@@ -78,9 +82,9 @@ void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t
                                                   std::to_string(groups) + " groups");
   const int64_t cg = c / groups;
   const int64_t units = batch * groups;
-  const bool vec = use_avx2();
-  const auto sums = vec ? avx2::shifted_sums : shifted_sums_portable;
-  const auto affine = vec ? avx2::affine_span : affine_span_portable;
+  const bool vec = use_simd();
+  const auto sums = vec ? simd::shifted_sums : shifted_sums_portable;
+  const auto affine = vec ? simd::affine_span : affine_span_portable;
 #pragma omp parallel for schedule(dynamic, 1) if (run_parallel(units, batch * frames * c * s))
   for (int64_t u = 0; u < units; ++u) {
     const int64_t b = u / groups, g = u % groups;
@@ -107,13 +111,13 @@ void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t
 }
 
 void layer_norm(const float* x, float* y, int64_t rows, int64_t c, const float* gamma, const float* beta, float eps) {
-  const auto row_fn = use_avx2() ? avx2::layer_norm_row : layer_norm_row_portable;
+  const auto row_fn = use_simd() ? simd::layer_norm_row : layer_norm_row_portable;
 #pragma omp parallel for schedule(static) if (run_parallel(rows, rows * c))
   for (int64_t r = 0; r < rows; ++r) row_fn(x + r * c, y + r * c, c, gamma, beta, eps);
 }
 
 void softmax_rows(float* x, int64_t rows, int64_t cols) {
-  const auto row_fn = use_avx2() ? avx2::softmax_row : softmax_row_portable;
+  const auto row_fn = use_simd() ? simd::softmax_row : softmax_row_portable;
 #pragma omp parallel for schedule(static) if (run_parallel(rows, rows * cols))
   for (int64_t r = 0; r < rows; ++r) row_fn(x + r * cols, cols);
 }

@@ -86,6 +86,10 @@ template void pack_b_portable<16>(const void*, DType, int64_t, bool, const float
 template void pack_b_portable<32>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
 template void pack_a_portable<kMrPortable>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
 template void pack_a_portable<kMrAvx512>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
-static_assert(kNrPortable == 16 && kNrAvx2 == 16 && kNrAvx512 == 32, "instantiate pack_b_portable for each NR");
+template void pack_b_portable<kNrNeon>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
+template void pack_a_portable<kMrNeon>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
+static_assert(kNrPortable == 16 && kNrAvx2 == 16 && kNrAvx512 == 32 && kNrNeon == 12,
+              "instantiate pack_b_portable for each NR");
+static_assert(kMrAvx2 == kMrPortable, "instantiate pack_a_portable for each MR");
 
 }  // namespace egopd::gemm_detail

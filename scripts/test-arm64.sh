@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# AArch64 (64-bit ARM) cross-build and test run on an x86-64 Debian machine: installs the cross compiler, the arm64
+# libraries (multiarch) and qemu-user, builds into build-arm64/ with cmake/toolchain-aarch64-linux-gnu.cmake, and runs
+# every unit and golden test under user-mode emulation twice: on the NEON kernel path, then on the portable one.
+#
+# OpenCV's arm64 development packages cannot be installed beside the amd64 ones (they conflict file by file), so
+# libopencv-dev:arm64 and its dependencies are extracted (not installed) into build-arm64/opencv-root/ with
+# mmdebstrap, from the machine's own Debian sources; nothing is left out of the build.
+# usage: scripts/test-arm64.sh [ctest arguments...]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+start=$(date +%s)
+jobs=$(nproc 2>/dev/null || echo 2)
+build=build-arm64
+
+sudo=""
+[ "$(id -u)" -ne 0 ] && sudo="sudo"
+if ! dpkg --print-foreign-architectures | grep -qx arm64; then
+  echo "adding the arm64 architecture to dpkg (multiarch)"
+  $sudo dpkg --add-architecture arm64
+  $sudo apt-get update -qq
+fi
+./scripts/install-packages.sh cmake ninja-build g++-aarch64-linux-gnu qemu-user mmdebstrap nlohmann-json3-dev \
+  libeigen3-dev libstb-dev libicu-dev:arm64 libgomp1:arm64 libgtest-dev:arm64 libgmock-dev:arm64
+
+opencv_root=$build/opencv-root
+if [ ! -e "$opencv_root/.complete" ]; then
+  echo "extracting libopencv-dev:arm64 and its dependencies into $opencv_root (takes a few minutes)"
+  rm -rf "$opencv_root"
+  mkdir -p "$build"
+  suite=$(. /etc/os-release && echo "$VERSION_CODENAME")
+  $sudo mmdebstrap --quiet --variant=extract --architectures=arm64 --include=libopencv-dev \
+    --skip=check/empty "$suite" "$opencv_root"
+  touch "$opencv_root/.complete"
+fi
+
+cmake -S . -B $build -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_TOOLCHAIN_FILE="$PWD/cmake/toolchain-aarch64-linux-gnu.cmake" \
+  -DEGOPD_ARM64_EXTRA_ROOT="$PWD/$opencv_root" -DEGOPD_BUILD_BENCH=OFF >/dev/null
+cmake --build $build -j"$jobs"
+built=$(date +%s)
+
+# The emulated CPU: qemu's default ("max") has every ARMv8.x extension; the kernels use only ARMv8.0-A.
+export OMP_WAIT_POLICY=passive
+qemu=(qemu-aarch64 -E "LD_LIBRARY_PATH=$PWD/$opencv_root/usr/lib/aarch64-linux-gnu:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/blas:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/lapack")
+echo "== $("${qemu[@]}" $build/bin/egopd --version) =="
+status=0
+for path in neon portable; do
+  echo "== every unit and golden test under qemu-aarch64, EGOPD_KERNELS=$path =="
+  t0=$(date +%s)
+  EGOPD_KERNELS=$path ctest --test-dir $build --output-on-failure -j"$jobs" "$@" || status=1
+  echo "   ($path: $(( $(date +%s) - t0 )) s)"
+done
+echo "arm64: build $(( built - start )) s, tests $(( $(date +%s) - built )) s, total $(( $(date +%s) - start )) s"
+exit $status
