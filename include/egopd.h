@@ -76,7 +76,8 @@ EGOPD_API void egopd_load_options_init(egopd_load_options* options);
 typedef struct egopd_model egopd_model;
 
 /* Loads a model directory (NULL or "": the built-in tiny synthetic model, created once in $XDG_CACHE_HOME/egopd or
- * ~/.cache/egopd; random weights, the pressures are not meaningful). options may be NULL (defaults). */
+ * ~/.cache/egopd, else in .egopd-default-model in the current folder; random weights, the pressures are not
+ * meaningful). options may be NULL (defaults). */
 EGOPD_API egopd_status egopd_model_load(const char* model_dir, const egopd_load_options* options,
                                         egopd_model** model);
 EGOPD_API void egopd_model_free(egopd_model* model);
