@@ -15,11 +15,8 @@
 namespace egopd {
 namespace fs = std::filesystem;
 
-static ModelDefaults load_defaults(const fs::path& dir) {
+ModelDefaults read_model_defaults(const Config& c) {
   ModelDefaults d;
-  const fs::path index = dir / "model_index.json";
-  if (!fs::exists(index)) throw Error(dir.string() + ": not a model directory (no model_index.json)");
-  Config c = Config::load(index.string());
   if (!c.has("egopd_defaults")) return d;
   Config e = c.sub("egopd_defaults");
   d.steps = int(e.get_int("num_inference_steps", 0, IntRange{0, 1000}));
@@ -32,6 +29,12 @@ static ModelDefaults load_defaults(const fs::path& dir) {
   d.max_guidance = float(e.get_double("max_guidance_scale", d.max_guidance, kGuidanceRange));
   d.prompt_template = e.get_string("prompt_template", "");
   return d;
+}
+
+static ModelDefaults load_defaults(const fs::path& dir) {
+  const fs::path index = dir / "model_index.json";
+  if (!fs::exists(index)) throw Error(dir.string() + ": not a model directory (no model_index.json)");
+  return read_model_defaults(Config::load(index.string()));
 }
 
 static void require_dir(const fs::path& p, const std::string& what) {

@@ -14,6 +14,7 @@
 #include "clip_image/svd_preprocess.h"
 #include "clip_text/clip_text.h"
 #include "clip_text/clip_tokenizer.h"
+#include "core/config.h"
 #include "core/timing.h"
 #include "mask_encoder/mask_encoder.h"
 #include "pipeline/prompt.h"
@@ -32,6 +33,8 @@ struct ModelDefaults {
   float min_guidance = 1, max_guidance = 1;
   std::string prompt_template;  // empty: the paper's template with clause dropping
 };
+// From a parsed model_index.json; each value range-checked (errors name the file and field).
+ModelDefaults read_model_defaults(const Config& model_index);
 
 struct PipelineSettings {
   int64_t frames = 16;

@@ -1,5 +1,5 @@
 // Every config reader on the same JSON document: U-Net, VAE, CLIP text and vision towers, mask encoder, both
-// samplers, the CLIP image normalisation (feature extractor) and the hand template.
+// samplers, the model_index defaults, the CLIP image normalisation (feature extractor) and the hand template.
 #include <nlohmann/json.hpp>
 
 #include "clip_image/clip_encoder.h"
@@ -8,6 +8,7 @@
 #include "core/config.h"
 #include "fuzz_common.h"
 #include "mask_encoder/mask_encoder.h"
+#include "pipeline/egopressurediff.h"
 #include "pressure/hand_template.h"
 #include "scheduler/animatelcm.h"
 #include "scheduler/euler.h"
@@ -34,6 +35,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   fuzz::expect_only_egopd_errors([&] { (void)read_clip_encoder_config(c, false); });
   fuzz::expect_only_egopd_errors([&] { (void)ClipVisionConfig::from_config(c); });
   fuzz::expect_only_egopd_errors([&] { (void)MaskEncoderConfig::from(c); });
+  fuzz::expect_only_egopd_errors([&] { (void)read_model_defaults(c); });
   fuzz::expect_only_egopd_errors([&] {
     EulerSampler s(c);
     s.set_timesteps(4);
