@@ -80,11 +80,12 @@ int bench_gemm(const Args& a) {
   const BenchWeights B(size_t(K * N), dt, 2);
   std::vector<float> C(size_t(M * N));
   const Operand bop{B.data(), dt, trans_b ? K : N, trans_b, nullptr};  // W [N,K] with --trans-b, else [K,N]
-  const double s = median_call_seconds(repeat, true, [&] { gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N); });
+  const CallTimes s = median_call_times(repeat, true, [&] { gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N); });
 
   BenchReport r;
   r.target = "gemm";
-  r.seconds = s;
+  r.seconds = s.wall;
+  r.cpu_seconds = s.cpu;
   r.gflop = 2.0 * double(M) * double(N) * double(K) * 1e-9;
   r.threads = num_threads();
   r.extra["m"] = M;
@@ -115,11 +116,12 @@ int bench_conv2d(const Args& a) {
   const BenchWeights W(size_t(cout * cin * kernel * kernel), dt, 4);
   std::vector<float> y(size_t(n * cout * oh * ow));
   const Operand wop{W.data(), dt, cin * kernel * kernel, false, nullptr};
-  const double s = median_call_seconds(repeat, true, [&] { conv2d(x.data(), n, h, w, wop, bias.data(), g, y.data()); });
+  const CallTimes s = median_call_times(repeat, true, [&] { conv2d(x.data(), n, h, w, wop, bias.data(), g, y.data()); });
 
   BenchReport r;
   r.target = "conv2d";
-  r.seconds = s;
+  r.seconds = s.wall;
+  r.cpu_seconds = s.cpu;
   r.gflop = 2.0 * double(n) * double(cout) * double(oh * ow) * double(cin * kernel * kernel) * 1e-9;
   r.threads = num_threads();
   r.extra["frames"] = n;

@@ -8,6 +8,7 @@
 #include "core/cpu.h"
 #include "core/kernels/fma_peak.h"
 #include "core/memory.h"
+#include "core/timing.h"
 #include "egopd/version.h"
 
 namespace egopd {
@@ -17,16 +18,22 @@ double peak_gflops(int threads) {
   return measured_peak_gflops(kernel_path(), threads);
 }
 
-double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call) {
-  if (warmup) call();
-  std::vector<double> t;
-  for (int64_t r = 0; r < std::max<int64_t>(repeat, 1); ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    call();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
+static double median(std::vector<double> t) {
   std::sort(t.begin(), t.end());
   return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
+}
+
+CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<void()>& call) {
+  if (warmup) call();
+  std::vector<double> wall, cpu;
+  for (int64_t r = 0; r < std::max<int64_t>(repeat, 1); ++r) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double c0 = process_cpu_seconds();
+    call();
+    cpu.push_back(process_cpu_seconds() - c0);
+    wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  return {median(wall), median(cpu)};
 }
 
 void print_bench_report(const BenchReport& r, bool json) {
@@ -34,6 +41,7 @@ void print_bench_report(const BenchReport& r, bool json) {
   nlohmann::ordered_json j;
   j["target"] = r.target;
   j["seconds"] = r.seconds;
+  if (r.cpu_seconds > 0) j["cpu_seconds"] = r.cpu_seconds;
   j["gflop"] = r.gflop;
   j["gflops"] = gflops;
   const double peak = peak_gflops(r.threads);

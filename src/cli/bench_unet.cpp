@@ -74,20 +74,24 @@ int bench_unet(const Args& a) {
 
   StageTimes stages;
   unet.set_profile(&stages);
-  std::vector<double> secs;
+  std::vector<double> secs, cpu;
   for (int64_t e = 0; e < evals; ++e) {
     auto t0 = std::chrono::steady_clock::now();
+    const double c0 = process_cpu_seconds();
     Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
+    cpu.push_back(process_cpu_seconds() - c0);
     secs.push_back(seconds_since(t0));
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
     std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals,
                  secs.back());
   }
   std::sort(secs.begin(), secs.end());
+  std::sort(cpu.begin(), cpu.end());
   const auto fl = unet.flops(1, frames, h, w, 1, pifr ? 77 : 0);
   BenchReport r;
   r.target = "unet";
   r.seconds = secs[(secs.size() - 1) / 2];  // lower median
+  r.cpu_seconds = cpu[(cpu.size() - 1) / 2];
   r.gflop = fl.executed / 1e9;
   r.threads = num_threads();
   r.extra["config"] = config;

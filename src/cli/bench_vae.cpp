@@ -95,12 +95,14 @@ int run_vae_bench(const Args& a, bool decode) {
   if (decode) {
     const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
     const Tensor latents = pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f);
-    r.seconds = median_call_seconds(o.repeat, false, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
+    const CallTimes t = median_call_times(o.repeat, false, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
+    r.seconds = t.wall, r.cpu_seconds = t.cpu;
     r.gflop = vae_decode_flop(cfg, o.frames, latent, latent) * 1e-9;
     r.extra["decode_chunk"] = chunk;
   } else {
     const Tensor images = pattern(Shape{o.frames, cfg.in_channels, o.size, o.size}, 1.0f);
-    r.seconds = median_call_seconds(o.repeat, false, [&] { y = vae.encode_mean(images); });
+    const CallTimes t = median_call_times(o.repeat, false, [&] { y = vae.encode_mean(images); });
+    r.seconds = t.wall, r.cpu_seconds = t.cpu;
     r.gflop = vae_encode_flop(cfg, o.frames, o.size, o.size) * 1e-9;
   }
   describe_output(y, r);

@@ -33,15 +33,19 @@ DType parse_weight_dtype(const std::string& s, const std::string& option);
 // seconds (median per call), gflops, percent_of_peak and peak_rss_bytes.
 struct BenchReport {
   std::string target;
-  double seconds = 0;  // median per call
+  double seconds = 0;      // median per call
+  double cpu_seconds = 0;  // median process CPU time per call (all threads; 0: not measured)
   double gflop = 0;    // work per call
   int threads = 1;
   nlohmann::ordered_json extra = nlohmann::ordered_json::object();
 };
 void print_bench_report(const BenchReport& r, bool json);
-// Median wall seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first touches of mapped
-// weights and scratch buffers).
-double median_call_seconds(int64_t repeat, bool warmup, const std::function<void()>& call);
+// Median wall and process-CPU seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first
+// touches of mapped weights and scratch buffers).
+struct CallTimes {
+  double wall = 0, cpu = 0;
+};
+CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<void()>& call);
 // FP32 peak of `threads` threads on the kernel path in use, measured with an FMA loop (override:
 // EGOPD_PEAK_GFLOPS per core).
 double peak_gflops(int threads);

@@ -1,6 +1,7 @@
 #include "core/timing.h"
 
 #include <algorithm>
+#include <ctime>
 
 #include "core/memory.h"
 
@@ -41,6 +42,12 @@ double StageTimes::total() const {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+double process_cpu_seconds() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return double(ts.tv_sec) + 1e-9 * double(ts.tv_nsec);
 }
 
 }  // namespace egopd

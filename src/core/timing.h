@@ -54,5 +54,8 @@ class ScopedStage {
 };
 
 double seconds_since(std::chrono::steady_clock::time_point t0);
+// CPU time this process has used so far (all threads): unlike wall time, it does not grow while other programs
+// hold the cores, so one-thread benchmarks on a shared machine compare by it.
+double process_cpu_seconds();
 
 }  // namespace egopd
