@@ -261,10 +261,13 @@ TEST_F(Batch, MemoryStaysFlatOverFiftyClips) {
   const BatchSummary s = run_batch(o);
   ASSERT_EQ(s.done, 50);
   ASSERT_EQ(s.rss_after_clip.size(), 50u);
-  // After a warm-up of ten clips (allocator pools, lazily paged weights) the resident set does not grow (measured:
-  // 12 KB over forty clips); leaking one 3 x 64 x 64 float frame (48 KB) per clip shows up as about 1 MB.
-  const int64_t growth = s.rss_after_clip[49] - s.rss_after_clip[9];
-  EXPECT_LT(growth, 512 << 10) << "RSS grew by " << growth << " bytes between clip 10 and clip 50";
+  // After a warm-up (allocator pools, lazily paged weights) the resident set does not grow: over the last twenty
+  // clips (measured: 0-12 KB on a quiet machine); leaking one 3 x 64 x 64 float frame (48 KB) per clip shows up as
+  // about 1 MB. The first thirty clips are warm-up: twice, with the tests running in parallel on a loaded machine,
+  // the resident set between clips 10 and 50 rose by about 1.5 MB (not reproduced alone; another malloc arena for an
+  // OpenMP thread is the likely one-time step), so a window that starts at clip 10 is not a leak test.
+  const int64_t growth = s.rss_after_clip[49] - s.rss_after_clip[29];
+  EXPECT_LT(growth, 384 << 10) << "RSS grew by " << growth << " bytes between clip 30 and clip 50";
 }
 
 // Pooling per split equals `egopd evaluate` on the same taxel CSVs (the already tested path): predictions against
