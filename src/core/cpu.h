@@ -34,9 +34,6 @@ KernelPath kernel_path();                          // the path in use
 // between kernel calls, never during one.
 void set_kernel_path(KernelPath p);
 
-// Transitional helpers: the AVX2 kernels also serve the avx512 path where it has none of its own.
-inline bool cpu_has_avx2_fma_f16c() { return cpu_info().avx2_fma_f16c; }
-inline bool use_avx2() { return kernel_path() == KernelPath::Avx2 || kernel_path() == KernelPath::Avx512; }
 // A SIMD path is in use: the element-wise, norm and attention kernels of this architecture's SIMD folder (avx2/ on
 // x86-64, neon/ on AArch64) apply.
 inline bool use_simd() { return kernel_path() != KernelPath::Portable; }

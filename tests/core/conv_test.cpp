@@ -236,7 +236,7 @@ TEST_P(ConvTest, Temporal) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::ValuesIn(test::kAllKernelPaths),
-                         [](const ::testing::TestParamInfo<KernelPath>& i) { return test::kernel_path_test_name(i.param); });
+                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
 
 }  // namespace
 }  // namespace egopd

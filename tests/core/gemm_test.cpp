@@ -264,7 +264,7 @@ TEST(GemmActTest, ApplyActMatchesDoubleReference) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, GemmTest, ::testing::ValuesIn(test::kAllKernelPaths),
-                         [](const ::testing::TestParamInfo<KernelPath>& i) { return test::kernel_path_test_name(i.param); });
+                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
 
 }  // namespace
 }  // namespace egopd

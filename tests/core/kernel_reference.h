@@ -30,6 +30,5 @@ struct KernelPathGuard {
 // Every kernel path, for parameterised suites (paths the CPU lacks are skipped with a message).
 inline const KernelPath kAllKernelPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512,
                                             KernelPath::Neon};
-inline std::string kernel_path_test_name(KernelPath p) { return kernel_path_name(p); }
 
 }  // namespace egopd::test
