@@ -20,7 +20,7 @@ set(EGOPD_ARM64_EXTRA_ROOT "" CACHE PATH "Extracted arm64 packages for libraries
 set(_egopd_libdirs "")
 if(EGOPD_ARM64_EXTRA_ROOT)
   list(APPEND CMAKE_PREFIX_PATH "${EGOPD_ARM64_EXTRA_ROOT}/usr")
-  foreach(d usr/lib/aarch64-linux-gnu lib/aarch64-linux-gnu usr/lib/aarch64-linux-gnu/blas
+  foreach(d usr/lib/aarch64-linux-gnu lib/aarch64-linux-gnu usr/lib usr/lib/aarch64-linux-gnu/blas
             usr/lib/aarch64-linux-gnu/lapack)
     if(EXISTS "${EGOPD_ARM64_EXTRA_ROOT}/${d}")
       list(APPEND _egopd_libdirs "${EGOPD_ARM64_EXTRA_ROOT}/${d}")

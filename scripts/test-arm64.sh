@@ -42,7 +42,7 @@ built=$(date +%s)
 
 # The emulated CPU: qemu's default ("max") has every ARMv8.x extension; the kernels use only ARMv8.0-A.
 export OMP_WAIT_POLICY=passive
-qemu=(qemu-aarch64 -E "LD_LIBRARY_PATH=$PWD/$opencv_root/usr/lib/aarch64-linux-gnu:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/blas:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/lapack")
+qemu=(qemu-aarch64 -E "LD_LIBRARY_PATH=$PWD/$opencv_root/usr/lib/aarch64-linux-gnu:$PWD/$opencv_root/usr/lib:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/blas:$PWD/$opencv_root/usr/lib/aarch64-linux-gnu/lapack")
 echo "== $("${qemu[@]}" $build/bin/egopd --version) =="
 status=0
 for path in neon portable; do
