@@ -80,12 +80,16 @@ struct Case {
   Act act = Act::None;
   int bias = 0;  // 0 none, 1 per column, 2 per row
   bool accumulate = false;
+  bool bf16 = false;  // Precision::Bf16: the reference multiplies the operands rounded to bfloat16
 };
+
+double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
 
 std::string describe(const Case& c) {
   return std::to_string(c.M) + "x" + std::to_string(c.N) + "x" + std::to_string(c.K) + " A " + dtype_name(c.adt) +
          (c.ta ? "^T" : "") + " B " + dtype_name(c.bdt) + (c.tb ? "^T" : "") + " act " +
-         std::to_string(int(c.act)) + " bias " + std::to_string(c.bias) + (c.accumulate ? " acc" : "");
+         std::to_string(int(c.act)) + " bias " + std::to_string(c.bias) + (c.accumulate ? " acc" : "") +
+         (c.bf16 ? " bf16" : "");
 }
 
 // Runs gemm on one case and checks every element against the bound; returns the number of failures.
@@ -104,14 +108,17 @@ int run_case(const Case& c, uint32_t seed) {
   ep.bias_per_row = c.bias == 2;
   ep.act = c.act;
   ep.accumulate = c.accumulate;
+  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
   gemm(c.M, c.N, c.K, A.operand(), B.operand(), C.data(), ldc, ep);
+  set_precision(Precision::Fp32);
   int bad = 0;
   for (int64_t i = 0; i < c.M; ++i)
     for (int64_t j = 0; j < c.N; ++j) {
       double s = 0, sa = 0;
       for (int64_t k = 0; k < c.K; ++k) {
-        s += A.at(i, k) * B.at(k, j);
-        sa += std::fabs(A.at(i, k) * B.at(k, j));
+        const double a = c.bf16 ? round_bf16(A.at(i, k)) : A.at(i, k), b = c.bf16 ? round_bf16(B.at(k, j)) : B.at(k, j);
+        s += a * b;
+        sa += std::fabs(a * b);
       }
       if (c.bias) {
         const double b = bias[size_t(c.bias == 2 ? i : j)];
@@ -253,6 +260,45 @@ TEST_P(GemmTest, OneThreadAndTwoThreadsAgree) {
     EXPECT_EQ(c1, c2) << "N = " << N;
   }
   set_num_threads(saved);
+}
+
+// Precision::Bf16 (native vdpbf16ps where the path has it, else emulated): the products of the bfloat16-rounded
+// operands, summed in float32, so the float32 bound above applies against a reference that rounds its operands
+// alike. Odd K (the last bfloat16 pair half empty), every operand dtype, transposes, tails, several K passes.
+TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
+  uint32_t seed = 600;
+  for (int64_t M : {1, 7, 12, 13, 50})
+    for (int64_t N : {1, 15, 32, 33, 70})
+      for (int64_t K : {1, 2, 7, 31, 700})
+        for (int t = 0; t < 4; ++t) {
+          Case c{M, N, K};
+          c.ta = t & 1;
+          c.tb = t & 2;
+          c.bf16 = true;
+          ASSERT_EQ(run_case(c, seed++), 0);
+        }
+  for (DType dt : {DType::F16, DType::BF16, DType::I8})
+    for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{37, 50, 45}, {130, 70, 1001}}) {
+      Case b{M, N, K, DType::F32, dt, false, true};
+      Case a{M, N, K, dt, DType::F32, false, false};
+      b.bf16 = a.bf16 = true;
+      b.bias = 1, a.bias = 2;
+      b.act = Act::GELU, a.accumulate = true;
+      ASSERT_EQ(run_case(b, seed++), 0);
+      ASSERT_EQ(run_case(a, seed++), 0);
+    }
+}
+
+TEST(PrecisionTest, NamesParseBack) {
+  for (Precision p : {Precision::Fp32, Precision::Bf16}) {
+    Precision q = p == Precision::Fp32 ? Precision::Bf16 : Precision::Fp32;
+    EXPECT_TRUE(parse_precision(precision_name(p), &q));
+    EXPECT_EQ(q, p);
+  }
+  Precision q;
+  EXPECT_FALSE(parse_precision("fp16", &q));
+  EXPECT_FALSE(parse_precision("", &q));
+  EXPECT_EQ(precision(), Precision::Fp32);  // the default
 }
 
 TEST(GemmActTest, ApplyActMatchesDoubleReference) {

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <memory>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "core/error.h"
@@ -28,7 +29,28 @@ float apply_act(Act act, float x) {
   return x;
 }
 
+namespace {
+Precision g_precision = Precision::Fp32;
+}
+
+const char* precision_name(Precision p) { return p == Precision::Bf16 ? "bf16" : "fp32"; }
+
+bool parse_precision(const char* name, Precision* out) {
+  for (Precision p : {Precision::Fp32, Precision::Bf16})
+    if (std::string(name) == precision_name(p)) return *out = p, true;
+  return false;
+}
+
+Precision precision() { return g_precision; }
+void set_precision(Precision p) { g_precision = p; }
+bool bf16_native() { return gemm_detail::gemm_path().micro_bf16 != nullptr; }
+
 namespace gemm_detail {
+
+void round_to_bf16(float* p, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) p[i] = bf16_to_float(float_to_bf16(p[i]));
+}
+
 namespace {
 
 constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
@@ -88,7 +110,14 @@ void run_gemm(const GemmJob& job) {
   const int64_t kc_blk = K > 0 ? ceil_div(K, npc) : 0;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
 
-  const MicroKernel uk = path.micro;
+  // Bf16: every packed panel is rounded (emulated) or turned into bfloat16 pairs (native) right after packing, so A
+  // is always packed.
+  const bool bf16 = precision() == Precision::Bf16, bf16_pairs = bf16 && path.micro_bf16;
+  const auto to_bf16 = [&](float* panel, int width, int64_t kc) {
+    if (bf16_pairs) path.to_bf16_pairs(panel, width, kc);
+    else round_to_bf16(panel, kc * width);
+  };
+  const MicroKernel uk = bf16_pairs ? path.micro_bf16 : path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
   const int64_t npanels = job.segments * panels_per_seg;
   const int64_t njc = ceil_div(npanels * NR, kNcMax);
@@ -105,7 +134,7 @@ void run_gemm(const GemmJob& job) {
   const bool split_m = npanels < int64_t(threads) * 4 && mpanels >= npanels;
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
-  const bool direct_a = job.a->direct != nullptr && path.a_in_place;
+  const bool direct_a = job.a->direct != nullptr && path.a_in_place && !bf16;
   // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
   // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
   // with the size of the column block).
@@ -151,7 +180,9 @@ void run_gemm(const GemmJob& job) {
         for (int64_t p = pk_lo; p < pk_hi; ++p) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-          job.b->pack(path, seg, k0, kc, n0, nr, b_pack + panel_slot(p) * kc_blk * NR);
+          float* panel = b_pack + panel_slot(p) * kc_blk * NR;
+          job.b->pack(path, seg, k0, kc, n0, nr, panel);
+          if (bf16) to_bf16(panel, NR, kc);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -168,8 +199,10 @@ void run_gemm(const GemmJob& job) {
              chunk = split_m ? next_chunk[iter].fetch_add(1) : chunk + 1) {
           const int64_t ic = chunk * chunk_rows, mc = std::min(chunk_rows, M - ic);
           if (!direct_a)
-            for (int64_t ir = 0; ir < mc; ir += MR)
+            for (int64_t ir = 0; ir < mc; ir += MR) {
               job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
+              if (bf16) to_bf16(a_pack + ir * kc, MR, kc);
+            }
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));

@@ -33,6 +33,21 @@ struct Epilogue {
 void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, float* C, int64_t ldc,
           const Epilogue& ep = {});
 
+// Arithmetic of the GEMM engine (linear layers and convolutions), process-wide like the kernel path:
+//   Fp32 (default): float32 operands, products and sums.
+//   Bf16: both operands rounded to bfloat16 (nearest even) as they are packed, float32 accumulation. On CPUs with
+//         AVX512-BF16 `vdpbf16ps` multiplies them (two products per lane and instruction); elsewhere the float32
+//         micro-kernel multiplies the rounded values: the same exact products, only slower than Fp32.
+// Attention scores, softmax, norms and activations stay float32 in every mode.
+enum class Precision : uint8_t { Fp32, Bf16 };
+const char* precision_name(Precision p);                     // "fp32", "bf16"
+bool parse_precision(const char* name, Precision* out);      // false for an unknown name
+Precision precision();
+// Use precision p from now on. Not thread-safe: call it between kernel calls, never during one.
+void set_precision(Precision p);
+// Where Bf16 runs natively (vdpbf16ps) on the kernel path in use, or emulated.
+bool bf16_native();
+
 // Scalar reference of the epilogue activations (shared by kernels and tests).
 float apply_act(Act act, float x);
 

@@ -62,6 +62,12 @@ struct GemmPath {
                             int nr, float* dst) = nullptr;
   int64_t (*pack_a_temporal)(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
                              int64_t len, float* dst) = nullptr;
+  // Precision::Bf16 with a native bfloat16 dot product (null: emulated, the float32 panels are rounded in place).
+  // to_bf16_pairs rewrites a packed float32 panel of `width` (MR or NR) columns and kc rows in place as ceil(kc/2)
+  // rows of 32-bit pairs: slot p*width + i holds bf16(x(2p, i)) in its low and bf16(x(2p+1, i)) in its high half
+  // (x(kc, i) = 0 for odd kc). micro_bf16 multiplies such A and B panels (kc is still the float32 depth).
+  void (*to_bf16_pairs)(float* panel, int width, int64_t kc) = nullptr;
+  MicroKernel micro_bf16 = nullptr;
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
   int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
   int64_t nc = 2048;  // columns of a B block shared by the team
@@ -78,6 +84,11 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
                         int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
                       int mr, int nr, const TileEpilogue& ep);
+void microkernel_avx512_bf16(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                             int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+void to_bf16_pairs_avx512(float* panel, int width, int64_t kc);
+// Emulated Bf16: x = float(bf16(x)) (nearest even) for n floats in place.
+void round_to_bf16(float* p, int64_t n);
 // Scalar epilogue of one tile from an MR x 16 sum (row stride 16); the partial tiles of the portable, AVX2 and
 // NEON paths.
 void store_tile_scalar(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep);

@@ -53,9 +53,13 @@ const GemmPath& gemm_path(KernelPath which) {
   static const GemmPath avx2 = with_blocking({kMrAvx2, kNrAvx2, microkernel_avx2, true, pack_a_avx2, pack_b_avx2,
                                               pack_im2col_shift_avx2, pack_a_temporal6_avx2},
                                              false);
-  static const GemmPath avx512 = with_blocking({kMrAvx512, kNrAvx512, microkernel_avx512, true, pack_a_avx512,
-                                                pack_b_avx512, pack_im2col_shift_avx512, nullptr},
-                                               true);
+  static const GemmPath avx512 = [] {
+    GemmPath p = with_blocking({kMrAvx512, kNrAvx512, microkernel_avx512, true, pack_a_avx512, pack_b_avx512,
+                                pack_im2col_shift_avx512, nullptr},
+                               true);
+    if (cpu_info().avx512_bf16) p.to_bf16_pairs = to_bf16_pairs_avx512, p.micro_bf16 = microkernel_avx512_bf16;
+    return p;
+  }();
   if (which == KernelPath::Avx512) return avx512;
   if (which == KernelPath::Avx2) return avx2;
 #elif defined(__aarch64__)

@@ -127,6 +127,75 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
   }
 }
 
+// ---- bfloat16 (Precision::Bf16 on CPUs with AVX512-BF16) --------------------------------------------------------
+// vdpbf16ps: lane j += a.lo * b.lo + a.hi * b.hi, the products exact in float32. Panels hold k pairs (see
+// GemmPath::to_bf16_pairs): per pair two B loads and twelve A broadcasts feed 24 instructions of 32 products each.
+
+#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7) X(8) X(9) X(10) X(11)
+#define EGOPD_DECLARE(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = _mm512_setzero_ps();
+#define EGOPD_DOT(i)                                                        \
+  {                                                                         \
+    const __m512bh av = (__m512bh)_mm512_set1_epi32(int(a[(i)]));          \
+    c##i##0 = _mm512_dpbf16_ps(c##i##0, av, b0);                            \
+    c##i##1 = _mm512_dpbf16_ps(c##i##1, av, b1);                            \
+  }
+#define EGOPD_STORE(i)                   \
+  _mm512_store_ps(sum + (i) * NR, c##i##0); \
+  _mm512_store_ps(sum + (i) * NR + 16, c##i##1);
+
+__attribute__((target("avx512bf16"))) void microkernel_avx512_bf16(int64_t kc, const float* a_panel, int64_t,
+                                                                   int64_t, const float* b_panel, float* c,
+                                                                   int64_t ldc, int mr, int nr,
+                                                                   const TileEpilogue& ep) {
+  if (ep.load_c || ep.add_after)
+    for (int i = 0; i < mr; ++i) {
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc), _MM_HINT_T0);
+      _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc + 16), _MM_HINT_T0);
+    }
+  const uint32_t* a = reinterpret_cast<const uint32_t*>(a_panel);
+  const uint32_t* b = reinterpret_cast<const uint32_t*>(b_panel);
+  EGOPD_ROWS(EGOPD_DECLARE)
+  for (int64_t p = 0, pairs = (kc + 1) / 2; p < pairs; ++p) {
+    const __m512bh b0 = (__m512bh)_mm512_load_si512(b), b1 = (__m512bh)_mm512_load_si512(b + 16);
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR), _MM_HINT_T0);
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR + 16), _MM_HINT_T0);
+    EGOPD_ROWS(EGOPD_DOT)
+    a += MR;
+    b += NR;
+  }
+  alignas(64) float sum[MR * NR];
+  EGOPD_ROWS(EGOPD_STORE)
+  const __mmask16 m0 = lanes(nr), m1 = lanes(nr - 16);
+  const float* bias_col1 = ep.bias_col ? ep.bias_col + 16 : nullptr;
+  for (int i = 0; i < mr; ++i) {
+    store16(c + i * ldc, ep.bias_col, _mm512_load_ps(sum + i * NR), i, m0, ep);
+    store16(c + i * ldc + 16, bias_col1, _mm512_load_ps(sum + i * NR + 16), i, m1, ep);
+  }
+}
+
+#undef EGOPD_STORE
+#undef EGOPD_DOT
+#undef EGOPD_DECLARE
+#undef EGOPD_ROWS
+
+__attribute__((target("avx512bf16"))) void to_bf16_pairs_avx512(float* panel, int width, int64_t kc) {
+  // In place: pair p is written over float rows <= p, all of them read before (row 0 by this very step, whose
+  // chunks are each loaded before they are overwritten).
+  uint32_t* out = reinterpret_cast<uint32_t*>(panel);
+  for (int64_t p = 0, pairs = (kc + 1) / 2; p < pairs; ++p) {
+    const float* r0 = panel + 2 * p * width;
+    const bool has_odd = 2 * p + 1 < kc;
+    for (int j = 0; j < width; j += 16) {
+      const __mmask16 m = lanes(width - j);
+      const __m512 lo = _mm512_maskz_loadu_ps(m, r0 + j);
+      const __m512 hi = has_odd ? _mm512_maskz_loadu_ps(m, r0 + width + j) : _mm512_setzero_ps();
+      const __m512i lo16 = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(lo));
+      const __m512i hi16 = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi));
+      _mm512_mask_storeu_epi32(out + p * width + j, m, _mm512_or_si512(lo16, _mm512_slli_epi32(hi16, 16)));
+    }
+  }
+}
+
 // ---- packing --------------------------------------------------------------------------------------------------
 
 namespace {
