@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "core/cpu.h"
 #include "core/kernels/fma_peak.h"
+#include "core/kernels/gemm.h"
 #include "core/memory.h"
 #include "core/timing.h"
 #include "egopd/version.h"
@@ -51,6 +52,8 @@ void print_bench_report(const BenchReport& r, bool json) {
   j["cpu"] = cpu_info().model;
   j["kernels"] = kernel_path_name(kernel_path());
   j["kernel_features"] = kernel_path_features(kernel_path());
+  j["precision"] = precision_name(precision());
+  if (precision() == Precision::Bf16) j["bf16"] = bf16_native() ? "native (vdpbf16ps)" : "emulated";
   j["peak_rss_bytes"] = peak_rss_bytes();
   j["version"] = EGOPD_VERSION;
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();

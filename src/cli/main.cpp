@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/gemm.h"
 #include "core/threading.h"
 #include "egopd/version.h"
 
@@ -138,6 +139,10 @@ void print_help() {
   std::printf(
       "\ncommon options:\n"
       "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
+      "  --precision fp32|bf16   arithmetic of the linear layers and convolutions (predict, counterfactual, batch,\n"
+      "                bench; default fp32). bf16: operands rounded to bfloat16, float32 sums; vdpbf16ps on CPUs\n"
+      "                with AVX512-BF16, an exact but slower emulation elsewhere. Attention scores, softmax, norms\n"
+      "                and the sampler stay float32. Check its error on your model against an fp32 run.\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
       "  EGOPD_KERNELS   kernel path: avx512, avx2 or portable (default: the best this CPU supports;\n"
@@ -171,6 +176,14 @@ int run(int argc, char** argv) {
     init_threads_from_env();
     if (a.has("threads")) {
       set_num_threads(int(a.get_int("threads", 0, 1, 1024)));
+    }
+    // Reduced-precision arithmetic is a choice of the commands that run the models for a result (never of the golden
+    // checks, which are float32 by definition).
+    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch") && a.has("precision")) {
+      const std::string v = a.get("precision", "fp32");
+      Precision p;
+      if (!parse_precision(v.c_str(), &p)) throw Error(name + ": --precision '" + v + "': expected fp32 or bf16");
+      set_precision(p);
     }
     return c.run(a);
   }
