@@ -125,8 +125,10 @@ TEST(CenterOfPressure, SingleLoadedTaxelIsItsCoordinate) {
   }
   std::vector<double> p = {0, 0, 0, 0.2, 0.2, 0.2, 0.2, 0};  // uniform palm -> its centroid (2, 12)
   const Point2 c = center_of_pressure(t, 5, p.data());
-  EXPECT_NEAR(c.x, 2.0 * 0.8 / (0.8 + 1e-6), 1e-15);
-  EXPECT_NEAR(c.y, 12.0 * 0.8 / (0.8 + 1e-6), 1e-15);
+  // A weighted mean of four terms: a few units in the last place (compilers may contract it into FMAs, as
+  // AArch64 GCC does by default).
+  EXPECT_NEAR(c.x, 2.0 * 0.8 / (0.8 + 1e-6), 8 * 2.0 * 2.2e-16);
+  EXPECT_NEAR(c.y, 12.0 * 0.8 / (0.8 + 1e-6), 8 * 12.0 * 2.2e-16);
   EXPECT_EQ(contact_ratio(t, 5, p.data()), 1.0);
   p[3] = p[4] = p[5] = 0;
   EXPECT_EQ(contact_ratio(t, 5, p.data()), 0.25);  // 1 of 4 > 0.2: valid
