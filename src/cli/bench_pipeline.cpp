@@ -4,6 +4,7 @@
 // once into the cache folder and reused: writing a real-size one takes longer than running it.
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,7 @@
 #include "cli/commands.h"
 #include "convert/dtype_convert.h"
 #include "core/error.h"
+#include "core/safetensors.h"
 #include "core/threading.h"
 #include "core/timing.h"
 #include "pipeline/egopressurediff.h"
@@ -108,6 +110,8 @@ int bench_pipeline(const Args& a) {
   const bool low_mem = a.flag("low-mem");
   const int64_t decode_chunk = a.get_int("decode-chunk", 0);
   const std::string model_arg = a.get("model", "");
+  const std::string save_result = a.get("save-result", "");
+  const std::string compare_to = a.get("compare-to", "");
   const bool json = a.flag("json");
   a.finish();
   if (config != "svd-xt" && config != "tiny") throw Error("bench pipeline: --config must be svd-xt or tiny");
@@ -161,6 +165,40 @@ int bench_pipeline(const Args& a) {
   for (const auto& f : r.frames)
     for (double p : f.p) taxels_sum += p;
 
+  // The result itself (--save-result), and its error against a saved one (--compare-to: another precision, kernel
+  // path or thread count on the same model, seed and sizes).
+  const int64_t taxel_count = r.frames.empty() ? 0 : int64_t(r.frames[0].p.size());
+  Tensor taxels({int64_t(r.frames.size()), taxel_count});  // [F, M] normalised taxels
+  for (size_t f = 0; f < r.frames.size(); ++f)
+    for (int64_t m = 0; m < taxel_count; ++m) taxels[int64_t(f) * taxel_count + m] = float(r.frames[f].p[size_t(m)]);
+  const std::pair<const char*, const Tensor*> results[] = {{"latents", &r.latents}, {"decoded", &r.decoded},
+                                                           {"taxels", &taxels}};
+  if (!save_result.empty()) {
+    std::vector<TensorToWrite> out;
+    for (const auto& [name, t] : results) out.push_back(to_write(name, *t));
+    write_safetensors(save_result, out);
+  }
+  nlohmann::ordered_json errors = nlohmann::ordered_json::object();
+  if (!compare_to.empty()) {
+    const SafeTensorsFile ref(compare_to);
+    for (const auto& [name, t] : results) {
+      const StoredTensor* st = ref.find(name);
+      if (!st) throw Error(compare_to + ": no tensor '" + name + "' (not written by bench pipeline --save-result)");
+      const Tensor want = st->to_f32();
+      if (want.numel() != t->numel())
+        throw Error(compare_to + ": tensor '" + name + "' has " + std::to_string(want.numel()) + " values, this run " +
+                    std::to_string(t->numel()) + " (other frames, size or model?)");
+      double diff2 = 0, ref2 = 0, max_abs = 0;
+      for (int64_t i = 0; i < t->numel(); ++i) {
+        const double d = double((*t)[i]) - want[i];
+        diff2 += d * d;
+        ref2 += double(want[i]) * want[i];
+        max_abs = std::max(max_abs, std::fabs(d));
+      }
+      errors[name] = {{"rel_l2", ref2 > 0 ? std::sqrt(diff2 / ref2) : std::sqrt(diff2)}, {"max_abs", max_abs}};
+    }
+  }
+
   // Work of the sampler loop: U-Net FLOPs per evaluation (counted from the config) x evaluations.
   const UNetConfig ucfg = UNetConfig::load((model / "unet").string());
   auto recorder = std::make_shared<WeightMap>(WeightMap::recorder("unet"));
@@ -195,6 +233,7 @@ int bench_pipeline(const Args& a) {
   rep.extra["peak_rss_bytes"] = times.peak_rss();  // VmHWM restarts per stage: the run's peak is the maximum
   rep.extra["stage_peak_rss_bytes"] = stage_rss;
   rep.extra["result"] = {{"latents_sum_sq", latents_sum_sq}, {"decoded_sum", decoded_sum}, {"taxels_sum", taxels_sum}};
+  if (!compare_to.empty()) rep.extra["error_vs"] = {{"file", compare_to}, {"tensors", errors}};
   print_bench_report(rep, json);
   return 0;
 }

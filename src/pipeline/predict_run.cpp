@@ -19,6 +19,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/interrupt.h"
+#include "core/kernels/gemm.h"
 #include "core/utf8.h"
 #include "pressure/hand_template.h"
 #include "core/memory.h"
@@ -313,6 +314,7 @@ ojson summary_json(const PredictOptions& o, const ClipSource& src, const Prepare
   j["guidance"] = {p.settings.min_guidance, p.settings.max_guidance};
   j["low_mem"] = p.pipe().low_mem();
   j["decode_chunk"] = o.decode_chunk > 0 ? o.decode_chunk : sh.frames;
+  j["precision"] = precision_name(precision());  // of the linear layers and convolutions (--precision)
   j["model_dir"] = p.model->model_dir();
   j["model_synthetic"] = p.model->builtin();
   if (p.builtin_clip) j["video"] = "sample_clip.mp4 (built-in synthetic clip)";
