@@ -1,4 +1,5 @@
-// conv2d and conv_temporal3 against double-precision direct loops, on every kernel path.
+// conv2d and conv_temporal3 against double-precision direct loops, on every kernel path, with the direct algorithm
+// (the Winograd one has its own test and bound: winograd_test.cpp).
 // Tolerance: 2 (K + 3) u sum |w x| (+ bias / residual terms) + 8 u |ref|, u = 2^-24, K = taps summed, times 1.2
 // when an activation follows.
 #include <gtest/gtest.h>
@@ -21,43 +22,8 @@ namespace {
 
 using test::act_ref;
 using test::kU;
-
-// Weights stored in a dtype, with their exact values for the reference.
-// I8 weights carry one scale per output channel (each channel = `per_channel` consecutive elements).
-struct StoredWeight {
-  DType dtype;
-  std::vector<float> f32;
-  std::vector<uint16_t> h16;
-  std::vector<int8_t> i8;
-  std::vector<float> scale;
-  std::vector<double> value;
-  StoredWeight(size_t n, DType dt, std::mt19937& rng, size_t per_channel = 1)
-      : dtype(dt), f32(n), h16(n), i8(n), value(n) {
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    if (dt == DType::I8)
-      for (size_t o = 0; o < n / per_channel; ++o) scale.push_back(0.005f + 0.001f * float(o % 7));
-    for (size_t i = 0; i < n; ++i) {
-      const float v = u(rng);
-      if (dt == DType::F16) h16[i] = float_to_half(v), value[i] = half_to_float(h16[i]);
-      else if (dt == DType::BF16) h16[i] = float_to_bf16(v), value[i] = bf16_to_float(h16[i]);
-      else if (dt == DType::I8) i8[i] = int8_t(std::lround(v * 127)), value[i] = float(i8[i]) * scale[i / per_channel];
-      else f32[i] = v, value[i] = v;
-    }
-  }
-  Operand operand(int64_t ld) const {
-    const void* p = dtype == DType::F32 ? static_cast<const void*>(f32.data())
-                    : dtype == DType::I8 ? static_cast<const void*>(i8.data())
-                                         : static_cast<const void*>(h16.data());
-    return Operand{p, dtype, ld, false, scale.empty() ? nullptr : scale.data()};
-  }
-};
-
-std::vector<float> random_vec(size_t n, std::mt19937& rng) {
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::vector<float> v(n);
-  for (auto& x : v) x = u(rng);
-  return v;
-}
+using test::random_vec;
+using test::StoredWeight;
 
 // Compares y against ref with per-element tolerances; returns the failure count.
 int check(const std::vector<float>& y, const std::vector<double>& ref, const std::vector<double>& tol,
@@ -173,9 +139,14 @@ class ConvTest : public ::testing::TestWithParam<KernelPath> {
     if (!kernel_path_supported(GetParam()))
       GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
     guard_.emplace(GetParam());
+    set_conv_algo(ConvAlgo::Direct);
   }
-  void TearDown() override { guard_.reset(); }
+  void TearDown() override {
+    guard_.reset();
+    set_conv_algo(algo_before_);
+  }
   std::optional<test::KernelPathGuard> guard_;
+  ConvAlgo algo_before_ = conv_algo();
 };
 
 TEST_P(ConvTest, Pointwise1x1) {

@@ -1,9 +1,13 @@
 #pragma once
 // Double-precision references shared by the kernel tests.
 #include <cmath>
+#include <cstdint>
+#include <random>
 #include <string>
+#include <vector>
 
 #include "core/cpu.h"
+#include "core/dtype.h"
 #include "core/kernels/gemm.h"
 
 namespace egopd::test {
@@ -30,5 +34,42 @@ struct KernelPathGuard {
 // Every kernel path, for parameterised suites (paths the CPU lacks are skipped with a message).
 inline const KernelPath kAllKernelPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512,
                                             KernelPath::Neon};
+
+// Weights stored in a dtype, with their exact values for the reference.
+// I8 weights carry one scale per output channel (each channel = `per_channel` consecutive elements).
+struct StoredWeight {
+  DType dtype;
+  std::vector<float> f32;
+  std::vector<uint16_t> h16;
+  std::vector<int8_t> i8;
+  std::vector<float> scale;
+  std::vector<double> value;
+  StoredWeight(size_t n, DType dt, std::mt19937& rng, size_t per_channel = 1)
+      : dtype(dt), f32(n), h16(n), i8(n), value(n) {
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    if (dt == DType::I8)
+      for (size_t o = 0; o < n / per_channel; ++o) scale.push_back(0.005f + 0.001f * float(o % 7));
+    for (size_t i = 0; i < n; ++i) {
+      const float v = u(rng);
+      if (dt == DType::F16) h16[i] = float_to_half(v), value[i] = half_to_float(h16[i]);
+      else if (dt == DType::BF16) h16[i] = float_to_bf16(v), value[i] = bf16_to_float(h16[i]);
+      else if (dt == DType::I8) i8[i] = int8_t(std::lround(v * 127)), value[i] = float(i8[i]) * scale[i / per_channel];
+      else f32[i] = v, value[i] = v;
+    }
+  }
+  Operand operand(int64_t ld) const {
+    const void* p = dtype == DType::F32 ? static_cast<const void*>(f32.data())
+                    : dtype == DType::I8 ? static_cast<const void*>(i8.data())
+                                         : static_cast<const void*>(h16.data());
+    return Operand{p, dtype, ld, false, scale.empty() ? nullptr : scale.data()};
+  }
+};
+
+inline std::vector<float> random_vec(size_t n, std::mt19937& rng) {
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> v(n);
+  for (auto& x : v) x = u(rng);
+  return v;
+}
 
 }  // namespace egopd::test

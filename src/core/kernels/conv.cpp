@@ -4,16 +4,19 @@
 #include "core/kernels/conv.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <string>
 
 #include "core/error.h"
 #include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
+#include "core/kernels/winograd.h"
 
 namespace egopd {
 
-
 namespace {
+
+int g_conv_algo = -1;  // -1: not chosen yet (EGOPD_CONV on first use)
 
 void check_weight(const Operand& w, const char* what) {
   if (w.dtype != DType::F32 && w.dtype != DType::F16 && w.dtype != DType::BF16 && w.dtype != DType::I8)
@@ -136,6 +139,51 @@ struct TemporalB : gemm_detail::BSource {
 
 }  // namespace
 
+const char* conv_algo_name(ConvAlgo a) {
+  switch (a) {
+    case ConvAlgo::Direct: return "direct";
+    case ConvAlgo::Winograd: return "winograd";
+    default: return "auto";
+  }
+}
+
+bool conv_algo_from_name(const std::string& s, ConvAlgo* out) {
+  for (ConvAlgo a : {ConvAlgo::Direct, ConvAlgo::Winograd, ConvAlgo::Auto})
+    if (s == conv_algo_name(a)) {
+      *out = a;
+      return true;
+    }
+  return false;
+}
+
+ConvAlgo conv_algo() {
+  if (g_conv_algo < 0) {
+    ConvAlgo a = ConvAlgo::Auto;
+    if (const char* e = std::getenv("EGOPD_CONV"); e && *e && !conv_algo_from_name(e, &a))
+      throw Error(std::string("EGOPD_CONV=") + e + ": unknown convolution algorithm (direct, winograd or auto)");
+    g_conv_algo = int(a);
+  }
+  return ConvAlgo(g_conv_algo);
+}
+
+void set_conv_algo(ConvAlgo a) { g_conv_algo = int(a); }
+
+namespace {
+
+bool use_winograd(const Conv2dGeom& g, int64_t n, int64_t h, int64_t w) {
+  const bool same3x3 = g.kh == 3 && g.kw == 3 && g.stride_h == 1 && g.stride_w == 1 && g.pad_h == 1 && g.pad_w == 1;
+  // Winograd is a float32 algorithm: reduced-precision compute (precision()) stays on the direct path.
+  const ConvAlgo algo = same3x3 && precision() == Precision::Fp32 ? conv_algo() : ConvAlgo::Direct;
+  return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && winograd_wins(g.cin, g.cout, n, h, w));
+}
+
+}  // namespace
+
+std::string conv2d_algorithm(const Conv2dGeom& g, int64_t n, int64_t h, int64_t w) {
+  if (!use_winograd(g, n, h, w)) return "direct";
+  return std::string("winograd ") + winograd_tile_name(winograd_tile_for(h, w));
+}
+
 namespace conv_detail {
 
 void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint32_t* masks) {
@@ -177,6 +225,8 @@ void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weig
   check_weight(weight, "conv2d");
   const int64_t oh = g.out_h(h), ow = g.out_w(w);
   if (n <= 0 || oh <= 0 || ow <= 0 || g.cout <= 0) return;
+  if (use_winograd(g, n, h, w))
+    return conv2d_winograd(x, n, h, w, weight, bias, g.cin, g.cout, y, act, accumulate, winograd_tile_for(h, w));
   const int64_t K = g.cin * g.kh * g.kw;
   Operand wa = weight;  // [cout, cin*kh*kw] row-major
   wa.trans = false;

@@ -4,10 +4,22 @@
 // channel, fused activation, fused residual accumulate). Fast paths for 1x1 and 3x3 that never materialise the
 // im2col of a whole input; any kernel/stride/padding works (patch embedding: kernel = stride = 14).
 #include <cstdint>
+#include <string>
 
 #include "core/kernels/gemm.h"
 
 namespace egopd {
+
+// How conv2d computes 3x3 stride-1 pad-1 convolutions (all other geometries are always direct): the implicit-GEMM
+// direct convolution, Winograd (winograd.h; F(4x4,3x3), or F(2x2,3x3) on frames smaller than 8), or Auto:
+// Winograd where winograd_wins() says it is faster, else direct. Process-wide; default Auto, or EGOPD_CONV=
+// direct|winograd|auto (read on first use; an unknown value is an error).
+enum class ConvAlgo : uint8_t { Direct, Winograd, Auto };
+const char* conv_algo_name(ConvAlgo a);                        // "direct", "winograd", "auto"
+bool conv_algo_from_name(const std::string& s, ConvAlgo* out);  // false for anything else
+ConvAlgo conv_algo();
+// Not thread-safe: call it between kernel calls, never during one (like set_kernel_path).
+void set_conv_algo(ConvAlgo a);
 
 struct Conv2dGeom {
   int64_t cin = 0, cout = 0;
@@ -22,6 +34,9 @@ struct Conv2dGeom {
 // ep.bias is ignored (pass bias here); ep.bias_per_row is implied.
 void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
             const Conv2dGeom& g, float* y, Act act = Act::None, bool accumulate = false);
+
+// What conv2d runs for this call under the current settings: "direct" or "winograd F(4x4,3x3)" / "... F(2x2,3x3)".
+std::string conv2d_algorithm(const Conv2dGeom& g, int64_t n, int64_t h, int64_t w);
 
 // Temporal convolution, kernel (3,1,1), padding (1,0,0) with zeros in time, on frame-major activations:
 // x [b*f, cin, hw] -> y [b*f, cout, hw], y[b,t,o] = bias[o] + sum_{c,k} W[o,c,k] x[b,t+k-1,c].

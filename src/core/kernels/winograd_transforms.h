@@ -1,0 +1,214 @@
+#pragma once
+// Winograd transforms written once as loops over L lanes (tiles, or channel pairs) with compile-time trip counts, so
+// that each kernel path's file compiles them with its own instruction set (#pragma GCC target before including
+// this header) and the compiler vectorises the lane loops. Everything is in an unnamed namespace: each path's
+// translation unit gets its own copy, compiled for its instruction set, never merged with another path's by the
+// linker. Include only from winograd.cpp and kernels/<path>/winograd.cpp.
+//
+// Matrices (Lavin & Gray, "Fast Algorithms for Convolutional Neural Networks", points 0, ±1, ±2 for F(4x4)):
+//   F(2x2,3x3): Bᵀ = [1 0 -1 0; 0 1 1 0; 0 -1 1 0; 0 1 0 -1], G = [1 0 0; ½ ½ ½; ½ -½ ½; 0 0 1],
+//               Aᵀ = [1 1 1 0; 0 1 -1 -1]
+//   F(4x4,3x3): Bᵀ = [4 0 -5 0 1 0; 0 -4 -4 1 1 0; 0 4 -4 -1 1 0; 0 -2 -1 2 1 0; 0 2 -1 -2 1 0; 0 4 0 -5 0 1],
+//               G = [¼ 0 0; -⅙ -⅙ -⅙; -⅙ ⅙ -⅙; 1/24 1/12 ⅙; 1/24 -1/12 ⅙; 0 0 1],
+//               Aᵀ = [1 1 1 1 1 0; 0 1 -1 2 -2 0; 0 1 1 4 4 0; 0 1 -1 8 -8 1]
+#include <algorithm>
+#include <cstdint>
+
+#include "core/kernels/winograd_internal.h"
+
+namespace egopd::wino_detail {
+namespace {
+
+template <int M>
+struct Transform;
+
+template <>
+struct Transform<2> {
+  static constexpr int A = 4;
+  static inline void bt(const float* d, float* v) {
+    v[0] = d[0] - d[2];
+    v[1] = d[1] + d[2];
+    v[2] = d[2] - d[1];
+    v[3] = d[1] - d[3];
+  }
+  static inline void g(const float* g, float* u) {
+    const float h = 0.5f * (g[0] + g[2]);
+    u[0] = g[0];
+    u[1] = h + 0.5f * g[1];
+    u[2] = h - 0.5f * g[1];
+    u[3] = g[2];
+  }
+  static inline void at(const float* m, float* y) {
+    y[0] = m[0] + m[1] + m[2];
+    y[1] = m[1] - m[2] - m[3];
+  }
+};
+
+template <>
+struct Transform<4> {
+  static constexpr int A = 6;
+  static inline void bt(const float* d, float* v) {
+    const float a = d[4] - 4.0f * d[2], b = d[3] - 4.0f * d[1];  // rows 1, 2
+    const float c = d[4] - d[2], e = 2.0f * (d[3] - d[1]);       // rows 3, 4
+    v[0] = 4.0f * d[0] - 5.0f * d[2] + d[4];
+    v[1] = a + b;
+    v[2] = a - b;
+    v[3] = c + e;
+    v[4] = c - e;
+    v[5] = 4.0f * d[1] - 5.0f * d[3] + d[5];
+  }
+  static inline void g(const float* g, float* u) {
+    constexpr float k6 = 1.0f / 6.0f, k12 = 1.0f / 12.0f, k24 = 1.0f / 24.0f;
+    const float s = -k6 * (g[0] + g[2]), t = k24 * g[0] + k6 * g[2];
+    u[0] = 0.25f * g[0];
+    u[1] = s - k6 * g[1];
+    u[2] = s + k6 * g[1];
+    u[3] = t + k12 * g[1];
+    u[4] = t - k12 * g[1];
+    u[5] = g[2];
+  }
+  static inline void at(const float* m, float* y) {
+    const float a = m[1] + m[2], b = m[1] - m[2], c = m[3] + m[4], d = m[3] - m[4];
+    y[0] = m[0] + a + c;
+    y[1] = b + 2.0f * d;
+    y[2] = a + 4.0f * c;
+    y[3] = b + 8.0f * d + m[5];
+  }
+};
+
+// Copies input columns [ix0, ix0 + n) of one row into dst, zeros outside [0, w).
+inline void copy_row_padded(const float* row, int64_t w, int64_t ix0, int n, float* dst) {
+  const int lo = int(std::clamp<int64_t>(-ix0, 0, n)), hi = int(std::clamp<int64_t>(w - ix0, lo, n));
+  for (int q = 0; q < lo; ++q) dst[q] = 0.0f;
+  for (int q = lo; q < hi; ++q) dst[q] = row[ix0 + q];
+  for (int q = hi; q < n; ++q) dst[q] = 0.0f;
+}
+
+template <int M, int L>
+void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, int64_t c1, float* dst,
+                 int64_t xi_stride) {
+  constexpr int A = Transform<M>::A, kRow = M * L + 2;
+  const int64_t h = pg.h, w = pg.w, plane = h * w;
+  alignas(64) float t[A][A][L];  // row transforms: t[r][l][j] = (Bᵀ d_r)_l of tile j, d_r its input row r
+  alignas(64) float vt[A][A][L];
+  alignas(64) float line[kRow];
+  alignas(64) float ph[M][L + 1];  // line de-interleaved: ph[q][i] = line[M*i + q], so tile i's column s is
+                                   // ph[s % M][i + s / M] and the row transform reads whole vectors
+  const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
+  if (covered < L)
+    for (int r = 0; r < A; ++r)
+      for (int l = 0; l < A; ++l)
+        for (int j = covered; j < L; ++j) t[r][l][j] = 0.0f;
+  for (int64_t c = c0; c < c1; ++c) {
+    for (int si = 0; si < pg.nseg; ++si) {
+      const Segment& s = pg.seg[si];
+      const int nl = s.j1 - s.j0, n = M * nl + 2;
+      const float* xc = x + (s.f * cin + c) * plane;
+      for (int r = 0; r < A; ++r) {
+        const int64_t iy = s.ty * M - 1 + r;
+        if (iy < 0 || iy >= h) {
+          for (int l = 0; l < A; ++l)
+            for (int j = s.j0; j < s.j1; ++j) t[r][l][j] = 0.0f;
+          continue;
+        }
+        copy_row_padded(xc + iy * w, w, s.tx0 * M - 1, n, line);
+        for (int i = 0; i < nl; ++i)
+          for (int q = 0; q < M; ++q) ph[q][i] = line[M * i + q];
+        ph[0][nl] = line[M * nl];
+        ph[1][nl] = line[M * nl + 1];
+        for (int i = 0; i < nl; ++i) {
+          float d[A], v[A];
+          for (int q = 0; q < A; ++q) d[q] = ph[q % M][i + q / M];
+          Transform<M>::bt(d, v);
+          for (int l = 0; l < A; ++l) t[r][l][s.j0 + i] = v[l];
+        }
+      }
+    }
+    // Into a local array first: the compiler vectorises the transform only when no store can alias its inputs.
+    for (int l = 0; l < A; ++l)
+      for (int j = 0; j < L; ++j) {
+        float d[A], v[A];
+        for (int r = 0; r < A; ++r) d[r] = t[r][l][j];
+        Transform<M>::bt(d, v);
+        for (int k = 0; k < A; ++k) vt[k][l][j] = v[k];
+      }
+    for (int xi = 0; xi < A * A; ++xi) std::copy_n(&vt[xi / A][xi % A][0], L, dst + xi * xi_stride + c * L);
+  }
+}
+
+template <int M, int L>
+void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep) {
+  constexpr int A = Transform<M>::A;
+  alignas(64) float s1[A][M][L];  // s1[k][jo][j] = (M_k Aᵀ)_jo of tile j
+  alignas(64) float out[M][M][L];
+  alignas(64) float row[M * L];
+  for (int k = 0; k < A; ++k)
+    for (int j = 0; j < L; ++j) {
+      float m[A], y[M];
+      for (int l = 0; l < A; ++l) m[l] = src[(k * A + l) * xi_stride + j];
+      Transform<M>::at(m, y);
+      for (int jo = 0; jo < M; ++jo) s1[k][jo][j] = y[jo];
+    }
+  for (int jo = 0; jo < M; ++jo)
+    for (int j = 0; j < L; ++j) {
+      float m[A], y[M];
+      for (int k = 0; k < A; ++k) m[k] = s1[k][jo][j];
+      Transform<M>::at(m, y);
+      for (int i = 0; i < M; ++i) out[i][jo][j] = y[i] + ep.bias;
+    }
+  if (ep.act != Act::None) apply_act_inplace(ep.act, &out[0][0][0], M * M * L);
+  const int64_t h = pg.h, w = pg.w;
+  for (int si = 0; si < pg.nseg; ++si) {
+    const Segment& s = pg.seg[si];
+    const int64_t ox0 = s.tx0 * M;
+    const int n = int(std::min<int64_t>(M * (s.j1 - s.j0), w - ox0));
+    for (int i = 0; i < M; ++i) {
+      const int64_t oy = s.ty * M + i;
+      if (oy >= h) break;
+      for (int j = s.j0; j < s.j1; ++j)
+        for (int jo = 0; jo < M; ++jo) row[M * j + jo] = out[i][jo][j];
+      float* d = ep.y + ((s.f * ep.cout + ep.o) * h + oy) * w + ox0;
+      const float* r = row + M * s.j0;
+      if (ep.accumulate)
+        for (int q = 0; q < n; ++q) d[q] += r[q];
+      else
+        for (int q = 0; q < n; ++q) d[q] = r[q];
+    }
+  }
+}
+
+template <int M, int L>
+void filter_lanes(const float* g, float* u) {
+  constexpr int A = Transform<M>::A;
+  alignas(64) float ut[A * A][L];
+  for (int j = 0; j < L; ++j) {
+    float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
+    for (int p = 0; p < 3; ++p) {
+      const float row[3] = {g[(p * 3) * L + j], g[(p * 3 + 1) * L + j], g[(p * 3 + 2) * L + j]};
+      Transform<M>::g(row, t[p]);
+    }
+    for (int l = 0; l < A; ++l) {
+      const float col[3] = {t[0][l], t[1][l], t[2][l]};
+      float v[A];
+      Transform<M>::g(col, v);
+      for (int k = 0; k < A; ++k) ut[k * A + l][j] = v[k];
+    }
+  }
+  std::copy_n(&ut[0][0], A * A * L, u);  // (stores through u could alias g: see input_panel)
+}
+
+template <int L>
+WinogradKernels make_winograd_kernels() {
+  WinogradKernels k;
+  k.lanes = L;
+  k.input[0] = input_panel<2, L>;
+  k.input[1] = input_panel<4, L>;
+  k.output[0] = output_panel<2, L>;
+  k.output[1] = output_panel<4, L>;
+  k.filter[0] = filter_lanes<2, L>;
+  k.filter[1] = filter_lanes<4, L>;
+  return k;
+}
+
+}  // namespace
+}  // namespace egopd::wino_detail

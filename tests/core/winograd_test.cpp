@@ -1,0 +1,335 @@
+// Winograd convolutions F(2x2,3x3) and F(4x4,3x3) against a double-precision direct convolution, on every kernel
+// path: odd and tiny frames (tile tails, frames smaller than a tile), several frames, channel counts that are not
+// multiples of the register tiles, every weight dtype and epilogue, the models' real layer shapes, and the
+// blocking (several output-channel and tile blocks, several K passes).
+//
+// Error bound. The computed result is y = Aᵀ[Σ_c (G g_c Gᵀ) ⊙ (Bᵀ d_c B)]A with every stage rounded. To first order
+// in u = 2^-24 each stage's rounding error is at most (its rounding depth) * u times the same expression taken with
+// absolute values of every matrix and operand, so
+//     |y - y_exact| <= (n_G + n_B + 1 + cin + n_A) u W,   W = |Aᵀ|[Σ_c (|G||g_c||Gᵀ|) ⊙ (|Bᵀ||d_c||B|)]|A| + |bias|,
+// where n_G <= 10 (two G stages, each a constant rounded to float, a product and two sums), n_B <= 6 and
+// n_A <= 6 (two stages of at most three roundings: the constants are small integers), 1 for the product U ⊙ V and
+// cin for the sum over input channels. W grows with the transform constants (F(4x4)'s 5, 8, 1/24 ...) and is
+// exactly why F(4x4) is less accurate than F(2x2) and than the direct convolution (whose W is sum |w x|). The test
+// asserts |y - ref| <= 2 (cin + 24) u W (+ 8 u |ref| and the activation / residual terms of conv_test.cpp), the
+// factor 2 covering second-order terms. A wrong transform constant makes the error O(W): the test fails.
+#include <gtest/gtest.h>
+
+#include "core/kernel_reference.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/cpu.h"
+#include "core/dtype.h"
+#include "core/kernels/conv.h"
+#include "core/kernels/winograd.h"
+
+namespace egopd {
+namespace {
+
+using test::act_ref;
+using test::kU;
+using test::random_vec;
+using test::StoredWeight;
+
+// The transform matrices in double, for the bound only (the reference itself is the direct convolution).
+struct Matrices {
+  int m, a;
+  std::vector<double> bt, g, at;  // Bᵀ [a][a], G [a][3], Aᵀ [m][a]
+};
+
+Matrices matrices(WinogradTile t) {
+  if (t == WinogradTile::F2x2)
+    return {2, 4,
+            {1, 0, -1, 0, 0, 1, 1, 0, 0, -1, 1, 0, 0, 1, 0, -1},
+            {1, 0, 0, .5, .5, .5, .5, -.5, .5, 0, 0, 1},
+            {1, 1, 1, 0, 0, 1, -1, -1}};
+  return {4, 6,
+          {4, 0, -5, 0, 1, 0, 0, -4, -4, 1, 1, 0, 0, 4, -4, -1, 1, 0,
+           0, -2, -1, 2, 1, 0, 0, 2, -1, -2, 1, 0, 0, 4, 0, -5, 0, 1},
+          {1. / 4, 0, 0, -1. / 6, -1. / 6, -1. / 6, -1. / 6, 1. / 6, -1. / 6,
+           1. / 24, 1. / 12, 1. / 6, 1. / 24, -1. / 12, 1. / 6, 0, 0, 1},
+          {1, 1, 1, 1, 1, 0, 0, 1, -1, 2, -2, 0, 0, 1, 1, 4, 4, 0, 0, 1, -1, 8, -8, 1}};
+}
+
+// out[k][l] = sum_{r,s} |P[k][r]| |X[r][s]| |P[l][s]| for P [rows][cols] and X [cols][cols].
+void abs_sandwich(const std::vector<double>& P, int rows, int cols, const double* X, double* out) {
+  std::vector<double> t(size_t(cols * rows));
+  for (int r = 0; r < cols; ++r)
+    for (int l = 0; l < rows; ++l) {
+      double s = 0;
+      for (int q = 0; q < cols; ++q) s += std::fabs(X[r * cols + q]) * std::fabs(P[l * cols + q]);
+      t[size_t(r * rows + l)] = s;
+    }
+  for (int k = 0; k < rows; ++k)
+    for (int l = 0; l < rows; ++l) {
+      double s = 0;
+      for (int r = 0; r < cols; ++r) s += std::fabs(P[k * cols + r]) * t[size_t(r * rows + l)];
+      out[k * rows + l] = s;
+    }
+}
+
+struct WinoCase {
+  int64_t n, cin, cout, h, w;
+  DType dt = DType::F32;
+  bool bias = true;
+  Act act = Act::None;
+  bool accumulate = false;
+};
+
+std::string describe(const WinoCase& c, WinogradTile t) {
+  return std::string(winograd_tile_name(t)) + " n" + std::to_string(c.n) + " " + std::to_string(c.cin) + "->" +
+         std::to_string(c.cout) + " " + std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt);
+}
+
+// The output channels checked: all of a small layer, else a spread over register tiles and blocks.
+std::vector<int64_t> checked_channels(int64_t cout) {
+  std::vector<int64_t> v;
+  if (cout <= 16) {
+    for (int64_t o = 0; o < cout; ++o) v.push_back(o);
+    return v;
+  }
+  for (int64_t o : {int64_t(0), int64_t(5), int64_t(6), int64_t(11), int64_t(12), cout / 2 - 1, cout / 2 + 7,
+                    cout - 2, cout - 1})
+    if (std::find(v.begin(), v.end(), o) == v.end()) v.push_back(o);
+  return v;
+}
+
+// One case's inputs, the exact outputs of the checked channels and their bound W (without the bias term).
+struct Reference {
+  WinoCase c;
+  std::mt19937 rng;
+  StoredWeight wt;
+  std::vector<float> x, bias, y0;
+  std::vector<int64_t> chans;
+  std::vector<double> exact;  // [f][ci][h][w] over checked channels ci
+  Reference(const WinoCase& c_, uint32_t seed)
+      : c(c_), rng(seed), wt(size_t(c.cout * c.cin * 9), c.dt, rng, size_t(c.cin * 9)) {
+    x = random_vec(size_t(c.n * c.cin * c.h * c.w), rng);
+    bias = random_vec(size_t(c.cout), rng);
+    y0 = random_vec(size_t(c.n * c.cout * c.h * c.w), rng);
+    chans = checked_channels(c.cout);
+    exact.assign(size_t(c.n) * chans.size() * size_t(c.h * c.w), 0.0);
+    for (int64_t f = 0; f < c.n; ++f)
+      for (size_t ci = 0; ci < chans.size(); ++ci)
+        for (int64_t oy = 0; oy < c.h; ++oy)
+          for (int64_t ox = 0; ox < c.w; ++ox) {
+            double s = 0;
+            for (int64_t i = 0; i < c.cin; ++i)
+              for (int64_t ky = 0; ky < 3; ++ky)
+                for (int64_t kx = 0; kx < 3; ++kx) {
+                  const int64_t iy = oy + ky - 1, ix = ox + kx - 1;
+                  if (iy < 0 || iy >= c.h || ix < 0 || ix >= c.w) continue;
+                  s += wt.value[size_t(((chans[ci] * c.cin + i) * 3 + ky) * 3 + kx)] *
+                       x[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)];
+                }
+            exact[(size_t(f) * chans.size() + ci) * size_t(c.h * c.w) + size_t(oy * c.w + ox)] = s;
+          }
+  }
+
+  // W of every checked output for tile t, same layout as exact.
+  std::vector<double> bound(WinogradTile t) const {
+    const Matrices mt = matrices(t);
+    const int m = mt.m, a = mt.a, a2 = a * a;
+    std::vector<double> gabs(chans.size() * size_t(c.cin * a2)), dabs(size_t(c.cin * a2)), W(exact.size());
+    for (size_t ci = 0; ci < chans.size(); ++ci)
+      for (int64_t i = 0; i < c.cin; ++i)
+        abs_sandwich(mt.g, a, 3, &wt.value[size_t((chans[ci] * c.cin + i) * 9)],
+                     &gabs[(ci * size_t(c.cin) + size_t(i)) * size_t(a2)]);
+    std::vector<double> patch(static_cast<size_t>(a2)), s(static_cast<size_t>(a2));
+    for (int64_t f = 0; f < c.n; ++f)
+      for (int64_t ty = 0; ty * m < c.h; ++ty)
+        for (int64_t tx = 0; tx * m < c.w; ++tx) {
+          for (int64_t i = 0; i < c.cin; ++i) {
+            for (int r = 0; r < a; ++r)
+              for (int q = 0; q < a; ++q) {
+                const int64_t iy = ty * m - 1 + r, ix = tx * m - 1 + q;
+                const bool in = iy >= 0 && iy < c.h && ix >= 0 && ix < c.w;
+                patch[size_t(r * a + q)] = in ? x[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)] : 0.0;
+              }
+            abs_sandwich(mt.bt, a, a, patch.data(), &dabs[size_t(i * a2)]);
+          }
+          for (size_t ci = 0; ci < chans.size(); ++ci) {
+            std::fill(s.begin(), s.end(), 0.0);
+            for (int64_t i = 0; i < c.cin; ++i)
+              for (int e = 0; e < a2; ++e)
+                s[size_t(e)] += gabs[(ci * size_t(c.cin) + size_t(i)) * size_t(a2) + size_t(e)] * dabs[size_t(i * a2 + e)];
+            for (int i = 0; i < m && ty * m + i < c.h; ++i)
+              for (int j = 0; j < m && tx * m + j < c.w; ++j) {
+                double v = 0;
+                for (int k = 0; k < a; ++k)
+                  for (int l = 0; l < a; ++l)
+                    v += std::fabs(mt.at[size_t(i * a + k)]) * s[size_t(k * a + l)] * std::fabs(mt.at[size_t(j * a + l)]);
+                W[(size_t(f) * chans.size() + ci) * size_t(c.h * c.w) + size_t((ty * m + i) * c.w + tx * m + j)] = v;
+              }
+          }
+        }
+    return W;
+  }
+};
+
+// Runs `run` (which writes y) and checks the checked channels against the bound; returns the failure count and
+// the largest error / tolerance ratio seen.
+template <class Run>
+int check_against(const Reference& R, WinogradTile t, Run run, double* worst_ratio = nullptr) {
+  const WinoCase& c = R.c;
+  std::vector<float> y = R.y0;
+  run(y);
+  const std::vector<double> W = R.bound(t);
+  const double gamma = 2.0 * double(c.cin + 24) * kU;
+  int bad = 0;
+  double worst = 0;
+  const int64_t hw = c.h * c.w;
+  for (int64_t f = 0; f < c.n; ++f)
+    for (size_t ci = 0; ci < R.chans.size(); ++ci)
+      for (int64_t p = 0; p < hw; ++p) {
+        const int64_t o = R.chans[ci];
+        const size_t ri = (size_t(f) * R.chans.size() + ci) * size_t(hw) + size_t(p);
+        const size_t yi = size_t((f * c.cout + o) * hw + p);
+        const double b = c.bias ? R.bias[size_t(o)] : 0.0;
+        double ref = act_ref(c.act, R.exact[ri] + b);
+        double tol = (c.act == Act::None ? 1.0 : 1.2) * gamma * (W[ri] + std::fabs(b)) + 8 * kU * std::fabs(ref);
+        if (c.accumulate) {
+          ref += R.y0[yi];
+          tol += 4 * kU * (std::fabs(R.y0[yi]) + std::fabs(ref));
+        }
+        tol += 1e-30;
+        const double err = std::fabs(double(y[yi]) - ref);
+        worst = std::max(worst, err / tol);
+        if (!(err <= tol)) {
+          if (bad < 3)
+            ADD_FAILURE() << describe(c, t) << " frame " << f << " channel " << o << " pixel " << p << ": got "
+                          << y[yi] << " want " << ref << " tol " << tol;
+          ++bad;
+        }
+      }
+  if (worst_ratio) *worst_ratio = worst;
+  return bad;
+}
+
+int run_wino(const WinoCase& c, WinogradTile t, uint32_t seed) {
+  const Reference R(c, seed);
+  return check_against(R, t, [&](std::vector<float>& y) {
+    conv2d_winograd(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), c.bias ? R.bias.data() : nullptr, c.cin,
+                    c.cout, y.data(), c.act, c.accumulate, t);
+  });
+}
+
+class WinogradTest : public ::testing::TestWithParam<KernelPath> {
+ protected:
+  void SetUp() override {
+    if (!kernel_path_supported(GetParam())) GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
+    guard_.emplace(GetParam());
+  }
+  void TearDown() override {
+    guard_.reset();
+    set_conv_algo(algo_before_);
+  }
+  std::optional<test::KernelPathGuard> guard_;
+  ConvAlgo algo_before_ = conv_algo();
+};
+
+constexpr WinogradTile kTiles[] = {WinogradTile::F2x2, WinogradTile::F4x4};
+
+TEST_P(WinogradTest, OddAndTinyFrames) {
+  uint32_t seed = 1;
+  for (WinogradTile t : kTiles) {
+    EXPECT_EQ(run_wino({1, 5, 7, 1, 1}, t, seed++), 0);     // 1x1 frame: one tile, all padding but the centre
+    EXPECT_EQ(run_wino({2, 3, 9, 3, 5}, t, seed++), 0);     // smaller than / one tile wide
+    EXPECT_EQ(run_wino({1, 13, 17, 7, 9}, t, seed++), 0);   // odd: partial tiles on both edges
+    EXPECT_EQ(run_wino({3, 17, 13, 17, 13}, t, seed++), 0); // several frames; panels across tile rows and frames
+    EXPECT_EQ(run_wino({2, 16, 6, 5, 33}, t, seed++), 0);   // wide, panels inside one tile row
+    EXPECT_EQ(run_wino({1, 1, 1, 2, 2}, t, seed++), 0);     // one channel
+    EXPECT_EQ(run_wino({4, 7, 25, 12, 10}, t, seed++), 0);  // sizes not multiple of the tile
+    EXPECT_EQ(run_wino({1, 4, 3, 40, 3}, t, seed++), 0);    // tall and narrow
+  }
+}
+
+TEST_P(WinogradTest, ChannelTailsAndBlocking) {
+  uint32_t seed = 20;
+  for (WinogradTile t : kTiles) {
+    EXPECT_EQ(run_wino({1, 700, 14, 6, 7}, t, seed++), 0);   // cin > KC: several K passes
+    EXPECT_EQ(run_wino({1, 9, 200, 5, 5}, t, seed++), 0);    // cout over several row chunks, not a multiple of MR
+    EXPECT_EQ(run_wino({2, 33, 19, 9, 11}, t, seed++), 0);   // cin not a multiple of the lanes
+  }
+  // Output channels over two blocks (U beyond its budget) and tiles over several blocks: V recomputed per block.
+  EXPECT_EQ(run_wino({3, 512, 300, 36, 40}, WinogradTile::F4x4, seed++), 0);
+  EXPECT_EQ(run_wino({2, 520, 260, 40, 36}, WinogradTile::F2x2, seed++), 0);
+}
+
+TEST_P(WinogradTest, WeightDtypesAndEpilogues) {
+  uint32_t seed = 40;
+  for (WinogradTile t : kTiles)
+    for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8})
+      for (Act act : {Act::None, Act::SiLU, Act::GELU, Act::QuickGELU})
+        for (bool acc : {false, true}) {
+          EXPECT_EQ(run_wino({2, 19, 21, 9, 7, dt, true, act, acc}, t, seed++), 0);
+          EXPECT_EQ(run_wino({1, 6, 5, 4, 5, dt, false, act, acc}, t, seed++), 0);
+        }
+}
+
+// conv2d takes Winograd when told to (and for 3x3 stride-1 pad-1 only); Auto takes it on large layers.
+TEST_P(WinogradTest, Conv2dDispatch) {
+  const WinoCase c{16, 24, 20, 11, 13, DType::F16};
+  const Reference R(c, 60);
+  const Conv2dGeom g{c.cin, c.cout, 3, 3, 1, 1, 1, 1};
+  for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
+    set_conv_algo(algo);
+    ASSERT_TRUE(algo == ConvAlgo::Winograd || winograd_wins(c.cin, c.cout, c.n, c.h, c.w));
+    EXPECT_EQ(check_against(R, winograd_tile_for(c.h, c.w), [&](std::vector<float>& y) {
+                conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
+              }),
+              0)
+        << conv_algo_name(algo);
+  }
+  EXPECT_FALSE(winograd_wins(3, 128, 16, 256, 256));  // the VAE's 3-channel output: direct
+  EXPECT_FALSE(winograd_wins(1280, 1280, 8, 8, 8));    // 8x8 frames, few of them: direct
+  EXPECT_TRUE(winograd_wins(512, 512, 1, 64, 64));
+  EXPECT_EQ(winograd_tile_for(4, 4), WinogradTile::F2x2);
+  EXPECT_EQ(winograd_tile_for(3, 40), WinogradTile::F2x2);
+  EXPECT_EQ(winograd_tile_for(8, 9), WinogradTile::F4x4);
+}
+
+INSTANTIATE_TEST_SUITE_P(Paths, WinogradTest, ::testing::ValuesIn(test::kAllKernelPaths),
+                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
+
+// The models' layer shapes (one frame, F16 weights as stored; sampled output channels), every supported path, the
+// tile each would use and F(2x2); prints the largest error / tolerance ratio seen.
+TEST(WinogradRealShapes, UNetAndVaeLevels) {
+  const struct {
+    const char* what;
+    int64_t ch, size;
+  } shapes[] = {{"unet", 320, 32}, {"unet", 640, 16}, {"unet", 1280, 8}, {"unet", 1280, 4},
+                {"vae", 128, 256}, {"vae", 256, 128}, {"vae", 512, 64},  {"vae", 512, 32}};
+  uint32_t seed = 80;
+  const test::KernelPathGuard restore(kernel_path());
+  for (const auto& s : shapes) {
+    const WinoCase c{1, s.ch, s.ch, s.size, s.size, DType::F16};
+    const Reference R(c, seed++);
+    for (KernelPath p : supported_kernel_paths()) {
+      set_kernel_path(p);
+      for (WinogradTile t : {winograd_tile_for(s.size, s.size), WinogradTile::F2x2}) {
+        double worst = 0;
+        EXPECT_EQ(check_against(R, t, [&](std::vector<float>& y) {
+                    conv2d_winograd(R.x.data(), 1, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), c.cin, c.cout,
+                                    y.data(), Act::None, false, t);
+                  }, &worst),
+                  0)
+            << s.what << " " << describe(c, t) << " on " << kernel_path_name(p);
+        std::printf("%s %s on %s: largest error / tolerance %.3g\n", s.what, describe(c, t).c_str(),
+                    kernel_path_name(p), worst);
+        if (t == WinogradTile::F2x2 && winograd_tile_for(s.size, s.size) == WinogradTile::F2x2) break;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace egopd
