@@ -1,5 +1,6 @@
 // `egopd bench gemm` and `egopd bench conv2d`: one kernel call timed R times after a warm-up; the report gives
-// the median seconds per call and the GFLOP per call (2*M*N*K; convolutions 2 * outputs * cin*kh*kw).
+// the median seconds per call and the GFLOP per call (2*M*N*K; convolutions 2 * outputs * cin*kh*kw, also for
+// Winograd, whose GFLOP/s are therefore direct-equivalent).
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
@@ -131,6 +132,7 @@ int bench_conv2d(const Args& a) {
   r.extra["w"] = w;
   r.extra["kernel"] = kernel;
   r.extra["stride"] = stride;
+  r.extra["conv_algorithm"] = conv2d_algorithm(g, n, h, w);  // GFLOP/s are direct-equivalent for Winograd
   r.extra["dtype"] = dtype_name(dt);
   r.extra["repeat"] = repeat;
     print_bench_report(r, json);

@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "core/cpu.h"
+#include "core/kernels/conv.h"
 #include "core/kernels/fma_peak.h"
 #include "core/kernels/gemm.h"
 #include "core/memory.h"
@@ -51,6 +52,7 @@ void print_bench_report(const BenchReport& r, bool json) {
   j["threads"] = r.threads;
   j["cpu"] = cpu_info().model;
   j["kernels"] = kernel_path_name(kernel_path());
+  j["conv"] = conv_algo_name(conv_algo());
   j["kernel_features"] = kernel_path_features(kernel_path());
   j["precision"] = precision_name(precision());
   if (precision() == Precision::Bf16) j["bf16"] = bf16_native() ? "native (vdpbf16ps)" : "emulated";

@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "core/cpu.h"
 #include "core/error.h"
+#include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
 #include "core/threading.h"
 #include "egopd/version.h"
@@ -39,7 +40,8 @@ const BenchTarget kBenchTargets[] = {
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--decode-chunk N] [--repeat 1]"},
     {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
     {"conv2d", bench_conv2d,
-     "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]"},
+     "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]\n"
+     "      (GFLOP per call 2*outputs*cin*kh*kw also for Winograd: direct-equivalent GFLOP/s)"},
 };
 
 int cmd_bench(const Args& a);
@@ -113,9 +115,10 @@ const Command kCommands[] = {
      "  SIGINT/SIGTERM: the current clip is abandoned with nothing half-written; exit 130/143; re-run to resume.\n"
      "  Every clip uses the same --seed. Progress: [k/n ID] lines per clip and step, clips/hour at the end."},
     {"bench", cmd_bench,
-     "egopd bench TARGET [options] [--threads T] [--json]\n"
+     "egopd bench TARGET [options] [--threads T] [--conv direct|winograd|auto] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
-     "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d."},
+     "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d.\n"
+     "  --conv: the 3x3 convolution algorithm (see egopd --help); the report records it."},
 };
 
 int cmd_bench(const Args& a) {
@@ -139,12 +142,16 @@ void print_help() {
   std::printf(
       "\ncommon options:\n"
       "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
+      "  --conv direct|winograd|auto   3x3 stride-1 convolutions (predict, counterfactual, batch, bench; default\n"
+      "                auto): direct, Winograd F(4x4,3x3) (F(2x2,3x3) on frames under 8 pixels), or auto:\n"
+      "                Winograd on layers with 16+ channels and 2048+ pixels over all frames, else direct.\n"
       "  --precision fp32|bf16   arithmetic of the linear layers and convolutions (predict, counterfactual, batch,\n"
       "                bench; default fp32). bf16: operands rounded to bfloat16, float32 sums; vdpbf16ps on CPUs\n"
       "                with AVX512-BF16, an exact but slower emulation elsewhere. Attention scores, softmax, norms\n"
       "                and the sampler stay float32. Check its error on your model against an fp32 run.\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
+      "  EGOPD_CONV      default of --conv\n"
       "  EGOPD_KERNELS   kernel path: avx512, avx2 or portable (default: the best this CPU supports;\n"
       "                  EGOPD_PORTABLE=1 is the same as EGOPD_KERNELS=portable)\n");
 }
@@ -157,8 +164,9 @@ int run(int argc, char** argv) {
   }
   if (rest[0] == "--version") {
     const CpuInfo& ci = cpu_info();
-    std::printf("egopd %s (kernels: %s, %s; cpu: %s)\n", EGOPD_VERSION, kernel_path_name(kernel_path()),
-                kernel_path_features(kernel_path()).c_str(), ci.model.empty() ? "unknown" : ci.model.c_str());
+    std::printf("egopd %s (kernels: %s, %s; conv: %s; cpu: %s)\n", EGOPD_VERSION, kernel_path_name(kernel_path()),
+                kernel_path_features(kernel_path()).c_str(), conv_algo_name(conv_algo()),
+                ci.model.empty() ? "unknown" : ci.model.c_str());
     return 0;
   }
   const std::string name = rest[0];
@@ -176,6 +184,12 @@ int run(int argc, char** argv) {
     init_threads_from_env();
     if (a.has("threads")) {
       set_num_threads(int(a.get_int("threads", 0, 1, 1024)));
+    }
+    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch") && a.has("conv")) {
+      const std::string v = a.get("conv", "auto");
+      ConvAlgo algo;
+      if (!conv_algo_from_name(v, &algo)) throw Error(name + ": --conv '" + v + "': expected direct, winograd or auto");
+      set_conv_algo(algo);
     }
     // Reduced-precision arithmetic is a choice of the commands that run the models for a result (never of the golden
     // checks, which are float32 by definition).
