@@ -30,7 +30,9 @@ struct BenchTarget {
 const BenchTarget kBenchTargets[] = {
     {"pipeline", bench_pipeline,
      "[--config svd-xt|tiny] [--steps 25|8|4] [--frames 16] [--size 256] [--dtype f16|f32|bf16|q8] [--low-mem]\n"
-     "      [--decode-chunk N] [--model DIR]   one whole prediction (25 steps: Euler teacher, else AnimateLCM student)"},
+     "      [--decode-chunk N] [--model DIR]   one whole prediction (25 steps: Euler teacher, else AnimateLCM student)\n"
+     "      [--save-result FILE] [--compare-to FILE]   save latents, decoded clip and taxels / report their rel_l2\n"
+     "      and max_abs error against a saved run (e.g. --precision bf16 against an fp32 run)"},
     {"unet", bench_unet,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--pifr] [--weights DIR]"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
@@ -146,9 +148,9 @@ void print_help() {
       "                auto): direct, Winograd F(4x4,3x3) (F(2x2,3x3) on frames under 8 pixels), or auto:\n"
       "                Winograd on layers with 16+ channels and 2048+ pixels over all frames, else direct.\n"
       "  --precision fp32|bf16   arithmetic of the linear layers and convolutions (predict, counterfactual, batch,\n"
-      "                bench; default fp32). bf16: operands rounded to bfloat16, float32 sums; vdpbf16ps on CPUs\n"
-      "                with AVX512-BF16, an exact but slower emulation elsewhere. Attention scores, softmax, norms\n"
-      "                and the sampler stay float32. Check its error on your model against an fp32 run.\n"
+      "                bench, forward; default fp32). bf16: operands rounded to bfloat16, float32 sums; vdpbf16ps on\n"
+      "                CPUs with AVX512-BF16, an exact but slower emulation elsewhere. Attention scores, softmax,\n"
+      "                norms and the sampler stay float32. Check its error on your model against an fp32 run.\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
       "  EGOPD_CONV      default of --conv\n"
@@ -191,9 +193,10 @@ int run(int argc, char** argv) {
       if (!conv_algo_from_name(v, &algo)) throw Error(name + ": --conv '" + v + "': expected direct, winograd or auto");
       set_conv_algo(algo);
     }
-    // Reduced-precision arithmetic is a choice of the commands that run the models for a result (never of the golden
-    // checks, which are float32 by definition).
-    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch") && a.has("precision")) {
+    // Reduced-precision arithmetic: the commands that run models (forward: to measure its error on the golden cases,
+    // whose tolerances are float32's).
+    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch" || name == "forward") &&
+        a.has("precision")) {
       const std::string v = a.get("precision", "fp32");
       Precision p;
       if (!parse_precision(v.c_str(), &p)) throw Error(name + ": --precision '" + v + "': expected fp32 or bf16");
