@@ -43,7 +43,10 @@ struct ConvCase {
   bool bias = true;
   Act act = Act::None;
   bool accumulate = false;
+  bool bf16 = false;  // Precision::Bf16: the reference multiplies the weights and inputs rounded to bfloat16
 };
+
+double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
 
 int run_conv(const ConvCase& c, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -54,7 +57,11 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
+  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
   conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
+  set_precision(Precision::Fp32);
+  const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
+  const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y.size()), tol(y.size());
   for (int64_t f = 0; f < c.n; ++f)
     for (int64_t o = 0; o < c.cout; ++o)
@@ -66,8 +73,8 @@ int run_conv(const ConvCase& c, uint32_t seed) {
               for (int64_t kx = 0; kx < c.k; ++kx) {
                 const int64_t iy = oy * c.stride - c.pad + ky, ix = ox * c.stride - c.pad + kx;
                 if (iy < 0 || iy >= c.h || ix < 0 || ix >= c.w) continue;
-                const double p = wt.value[size_t(((o * c.cin + ci) * c.k + ky) * c.k + kx)] *
-                                 x[size_t(((f * c.cin + ci) * c.h + iy) * c.w + ix)];
+                const double p = w_at(size_t(((o * c.cin + ci) * c.k + ky) * c.k + kx)) *
+                                 x_at(size_t(((f * c.cin + ci) * c.h + iy) * c.w + ix));
                 s += p;
                 sa += std::fabs(p);
               }
@@ -84,7 +91,7 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   return check(y, ref, tol,
                "conv " + std::to_string(c.k) + "x" + std::to_string(c.k) + "/" + std::to_string(c.stride) + " n" +
                    std::to_string(c.n) + " " + std::to_string(c.cin) + "->" + std::to_string(c.cout) + " " +
-                   std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt));
+                   std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt) + (c.bf16 ? " bf16" : ""));
 }
 
 struct TemporalCase {
@@ -92,6 +99,7 @@ struct TemporalCase {
   DType dt = DType::F32;
   Act act = Act::None;
   bool accumulate = false;
+  bool bf16 = false;
 };
 
 int run_temporal(const TemporalCase& c, uint32_t seed) {
@@ -101,8 +109,12 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
   const std::vector<float> y0 = y;
+  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
   conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
                  c.accumulate);
+  set_precision(Precision::Fp32);
+  const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
+  const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y.size()), tol(y.size());
   for (int64_t bi = 0; bi < c.b; ++bi)
     for (int64_t t = 0; t < c.f; ++t)
@@ -114,7 +126,7 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
               const int64_t ts = t + k - 1;
               if (ts < 0 || ts >= c.f) continue;
               const double v =
-                  wt.value[size_t((o * c.cin + ci) * 3 + k)] * x[size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)];
+                  w_at(size_t((o * c.cin + ci) * 3 + k)) * x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p));
               s += v;
               sa += std::fabs(v);
             }
@@ -189,6 +201,26 @@ TEST_P(ConvTest, WeightDtypesAndEpilogues) {
         ConvCase big_k{1, 45, 7, 4, 4, 3, 1, 1, dt, true, act, acc};  // K = 405 > one K block
         EXPECT_EQ(run_conv(big_k, seed++), 0);
       }
+}
+
+// Precision::Bf16 (3x3 convolutions then stay direct): 1x1, same and strided 3x3, patch embedding, temporal, every
+// weight dtype, epilogues, one-frame clips, K over several passes; against a reference that rounds alike.
+TEST_P(ConvTest, Bf16Compute) {
+  uint32_t seed = 80;
+  for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8}) {
+    const ConvCase cases[] = {{2, 5, 7, 3, 5, 1, 1, 0, dt},          {1, 3, 17, 7, 9, 3, 1, 1, dt},
+                              {2, 50, 13, 6, 6, 3, 1, 1, dt, true, Act::SiLU}, {1, 4, 4, 1, 1, 3, 1, 1, dt},
+                              {3, 7, 9, 8, 8, 3, 2, 1, dt, true, Act::None, true}, {1, 3, 10, 28, 28, 14, 14, 0, dt}};
+    for (ConvCase c : cases) {
+      c.bf16 = true;
+      EXPECT_EQ(run_conv(c, seed++), 0);
+    }
+    for (int64_t f : {1, 3}) {
+      TemporalCase t{2, f, 9, 13, 37, dt};
+      t.bf16 = true;
+      EXPECT_EQ(run_temporal(t, seed++), 0);
+    }
+  }
 }
 
 TEST_P(ConvTest, Temporal) {
