@@ -14,6 +14,7 @@ import sys
 
 import torch
 
+sys.dont_write_bytecode = True  # no __pycache__ beside the sources
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import svd_modules as sm  # noqa: E402
 

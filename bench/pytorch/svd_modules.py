@@ -11,6 +11,7 @@ diffusers would run on the same PyTorch. Every module computes in the dtype of i
 golden check, float32 for timing).
 """
 
+import contextlib
 import json
 import math
 import os
@@ -26,18 +27,16 @@ from torch import nn
 _NP_DTYPES = {"F64": np.float64, "F32": np.float32, "F16": np.float16, "I64": np.int64, "I32": np.int32}
 
 
-def read_safetensors(path, dtype=torch.float32):
-    """Every tensor of a safetensors file as a torch tensor; float tensors are converted to `dtype`."""
+def iter_safetensors(path, dtype=torch.float32):
+    """(name, tensor) for every tensor of a safetensors file, one at a time; floats are converted to `dtype`."""
     with open(path, "rb") as f:
         n = int.from_bytes(f.read(8), "little")
         header = json.loads(f.read(n))
     raw = np.memmap(path, dtype=np.uint8, mode="r", offset=8 + n)  # mapped, not read: real-size files are GBs
-    out = {}
     for name, info in header.items():
         if name == "__metadata__":
             continue
         a, b = info["data_offsets"]
-        shape = info["shape"]
         kind = info["dtype"]
         buf = raw[a:b]
         if kind == "BF16":  # bfloat16 = the upper half of a float32
@@ -46,22 +45,28 @@ def read_safetensors(path, dtype=torch.float32):
             arr = buf.view(_NP_DTYPES[kind])
         else:
             raise ValueError(f"{path}: tensor {name} has unsupported dtype {kind}")
-        t = torch.from_numpy(np.array(arr).reshape(shape))  # np.array copies out of the mapping
-        out[name] = t.to(dtype) if t.is_floating_point() else t
-    return out
+        t = torch.from_numpy(np.array(arr).reshape(info["shape"]))  # np.array copies out of the mapping
+        yield name, (t.to(dtype) if t.is_floating_point() else t)
+
+
+def read_safetensors(path, dtype=torch.float32):
+    """Every tensor of a safetensors file as a dict of torch tensors; floats are converted to `dtype`."""
+    return dict(iter_safetensors(path, dtype))
+
+
+def component_weight_files(folder, stem="diffusion_pytorch_model"):
+    """The safetensors files of a diffusers component folder: STEM.safetensors, or the shards of its index."""
+    single = os.path.join(folder, stem + ".safetensors")
+    if os.path.exists(single):
+        return [single]
+    with open(os.path.join(folder, stem + ".safetensors.index.json")) as f:
+        return [os.path.join(folder, s) for s in sorted(set(json.load(f)["weight_map"].values()))]
 
 
 def read_component_weights(folder, stem="diffusion_pytorch_model", dtype=torch.float32):
-    """The weights of a diffusers component folder: STEM.safetensors, or shards listed in STEM.safetensors.index.json."""
-    single = os.path.join(folder, stem + ".safetensors")
-    if os.path.exists(single):
-        return read_safetensors(single, dtype)
-    index = os.path.join(folder, stem + ".safetensors.index.json")
-    with open(index) as f:
-        shards = sorted(set(json.load(f)["weight_map"].values()))
     out = {}
-    for s in shards:
-        out.update(read_safetensors(os.path.join(folder, s), dtype))
+    for path in component_weight_files(folder, stem):
+        out.update(read_safetensors(path, dtype))
     return out
 
 
@@ -92,7 +97,7 @@ class TimestepEmbedding(nn.Module):
 
 
 class Attention(nn.Module):
-    """diffusers' Attention with its torch-1.x processor (scores materialised with baddbmm, softmax, bmm).
+    """diffusers' Attention with its torch-1.x processor (scores materialised, softmax, bmm).
 
     Tokens in, tokens out: x [B, L, query_dim], context [B, S, context_dim] (None: self-attention). Heads take
     contiguous channel slices."""
@@ -114,8 +119,9 @@ class Attention(nn.Module):
     def forward(self, x, context=None):
         ctx = x if context is None else context
         q, k, v = self._split(self.to_q(x)), self._split(self.to_k(ctx)), self._split(self.to_v(ctx))
-        scores = torch.baddbmm(torch.empty(q.shape[0], q.shape[1], k.shape[1], dtype=q.dtype), q,
-                               k.transpose(-1, -2), beta=0, alpha=self.scale)
+        # diffusers uses baddbmm(torch.empty(...), beta=0) here; this torch build can let NaNs of the uninitialised
+        # buffer through, so the scale goes onto q instead (same work: one L x S product per head).
+        scores = torch.bmm(q * self.scale, k.transpose(-1, -2))
         o = torch.bmm(scores.softmax(dim=-1), v)
         bh, n, d = o.shape
         o = o.reshape(bh // self.heads, self.heads, n, d).permute(0, 2, 1, 3).reshape(bh // self.heads, n, -1)
@@ -617,12 +623,60 @@ class TemporalVAE(nn.Module):
         return torch.cat([self.decode(z[i:i + chunk], z[i:i + chunk].shape[0]) for i in range(0, z.shape[0], chunk)])
 
 
-def load_model(kind, folder, dtype=torch.float32):
-    """A UNetSpatioTemporal ("unet") or TemporalVAE ("vae") from a diffusers component folder, loaded strictly."""
-    cfg = read_config(folder)
-    model = UNetSpatioTemporal(cfg) if kind == "unet" else TemporalVAE(cfg)
-    weights = read_component_weights(folder, dtype=dtype)
+@contextlib.contextmanager
+def no_init():
+    """Builds modules without torch's default random init (every parameter is overwritten afterwards); at real
+    size that init alone takes longer than a forward pass."""
+    saved = nn.Linear.reset_parameters, nn.modules.conv._ConvNd.reset_parameters
+    nn.Linear.reset_parameters = nn.modules.conv._ConvNd.reset_parameters = lambda self: None
+    try:
+        yield
+    finally:
+        nn.Linear.reset_parameters, nn.modules.conv._ConvNd.reset_parameters = saved
+
+
+def build_model(kind, cfg):
+    with no_init():
+        return UNetSpatioTemporal(cfg) if kind == "unet" else TemporalVAE(cfg)
+
+
+def _drop_disabled_pifr(kind, cfg, names):
+    """With PIFR absent or disabled in the config its keys are ignored (egopressurediff.md section 6.5)."""
     if kind == "unet" and not (cfg.get("pifr") or {}).get("enabled", False):
-        weights = {k: v for k, v in weights.items() if ".pifr." not in k}  # PIFR disabled: its keys are ignored
-    model.load_state_dict(weights, strict=True)
-    return model.to(dtype).eval()
+        return {n for n in names if ".pifr." not in n}
+    return set(names)
+
+
+def load_model(kind, folder, dtype=torch.float32):
+    """A UNetSpatioTemporal ("unet") or TemporalVAE ("vae") from a diffusers component folder, through
+    load_state_dict(strict=True). Holds the file's tensors and the model at once: for small models."""
+    cfg = read_config(folder)
+    model = build_model(kind, cfg).to(dtype).eval()
+    weights = read_component_weights(folder, dtype=dtype)
+    keep = _drop_disabled_pifr(kind, cfg, weights)
+    model.load_state_dict({k: v for k, v in weights.items() if k in keep}, strict=True)
+    return model
+
+
+def load_model_streaming(kind, folder, dtype=torch.float32):
+    """As load_model, with the same strict key and shape checks, but copying one tensor at a time, so a real-size
+    model never exists twice in memory (which would distort the benchmark's peak RSS)."""
+    cfg = read_config(folder)
+    model = build_model(kind, cfg).to(dtype).eval()
+    params = model.state_dict()
+    seen = set()
+    with torch.no_grad():
+        for path in component_weight_files(folder):
+            for name, t in iter_safetensors(path, dtype):
+                if name not in _drop_disabled_pifr(kind, cfg, [name]):
+                    continue
+                if name not in params:
+                    raise KeyError(f"{folder}: unexpected key {name}")
+                if tuple(t.shape) != tuple(params[name].shape):
+                    raise ValueError(f"{folder}: {name} has shape {list(t.shape)}, the model {list(params[name].shape)}")
+                params[name].copy_(t)
+                seen.add(name)
+    missing = sorted(set(params) - seen)
+    if missing:
+        raise KeyError(f"{folder}: {len(missing)} missing keys, e.g. {missing[:3]}")
+    return model
