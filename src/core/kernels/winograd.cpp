@@ -129,10 +129,12 @@ WinogradTile winograd_tile_for(int64_t h, int64_t w) {
 
 bool winograd_wins(int64_t cin, int64_t cout, int64_t n, int64_t h, int64_t w) {
   // Few channels: the transforms (O(cin + cout) per tile) outweigh the GEMM saving (O(cin * cout) per tile).
-  // Frames under 8 pixels: edge tiles are mostly padding. Few pixels in all: the per-call filter transform (about
-  // 60 ns per channel pair for F(4x4), one core) is not paid back by the saving (about 0.07 ns per pixel and pair):
-  // the U-Net's 8x8 and 4x4 levels stay direct (measured 2-3x slower in Winograd at 4-32 frames).
-  return cin >= 16 && cout >= 16 && std::min(h, w) >= 8 && n * h * w >= 2048;
+  // Frames under 4 pixels: edge tiles are mostly padding. Few pixels in all: the per-call filter transform (per
+  // channel pair about 60 ns for F(4x4) on one Zen 5 core, less for F(2x2): 16 values instead of 36) is not paid
+  // back by the GEMM saving per pixel. Measured on 1280 channels, one thread: F(4x4) 8x8 loses 2x at 4 frames (256 pixels) and
+  // wins 1.2x at 16 (1024 pixels); F(2x2) 4x4 wins 1.1x at 16 frames (256 pixels) and 1.5x at 32.
+  if (cin < 16 || cout < 16 || std::min(h, w) < 4) return false;
+  return n * h * w >= (winograd_tile_for(h, w) == WinogradTile::F4x4 ? 1024 : 512);
 }
 
 void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
