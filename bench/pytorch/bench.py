@@ -181,13 +181,27 @@ def cpu_capability():
 
 
 def blas_library():
-    """The BLAS shared object torch's matrix products went to (Debian's torch uses the system libblas.so.3)."""
+    """The BLAS torch's matrix products went to (Debian's torch calls the system libblas.so.3, whichever
+    implementation the alternatives system points it to), with OpenBLAS's kernel choice when it is OpenBLAS."""
     try:
         with open("/proc/self/maps") as f:
-            libs = {line.split()[-1] for line in f if "blas" in line.split()[-1].lower() or "mkl" in line.lower()}
-        return sorted(os.path.basename(p) for p in libs if "/" in p)
+            libs = sorted({line.split()[-1] for line in f
+                           if "blas" in line.split()[-1].lower() or "mkl" in line.split()[-1].lower()})
     except OSError:
-        return []
+        return None
+    info = {"libraries": [os.path.basename(p) for p in libs if "/" in p]}
+    for path in libs:
+        if "openblas" in os.path.basename(path):
+            try:
+                import ctypes
+                lib = ctypes.CDLL(path)
+                lib.openblas_get_corename.restype = lib.openblas_get_config.restype = ctypes.c_char_p
+                info["openblas_core"] = lib.openblas_get_corename().decode()
+                info["openblas_config"] = lib.openblas_get_config().decode().strip()
+                info["openblas_threads"] = lib.openblas_get_num_threads()
+            except (OSError, AttributeError):
+                pass
+    return info
 
 
 # ---- main -----------------------------------------------------------------------------------------------------------
@@ -282,6 +296,8 @@ def main():
         torch=torch.__version__, numpy=np.__version__,
         mkldnn={"available": torch.backends.mkldnn.is_available(), "enabled": torch.backends.mkldnn.enabled},
         cpu_capability=cpu_capability(), blas=blas_library(), cpu=cpu_model(), logical_cpus=os.cpu_count(),
+        env={k: os.environ[k] for k in ("ATEN_CPU_CAPABILITY", "OPENBLAS_CORETYPE", "ONEDNN_MAX_CPU_ISA",
+                                        "DNNL_MAX_CPU_ISA") if k in os.environ},
         rss_after_setup_bytes=rss_setup,
         peak_rss_bytes=proc_status_bytes("VmHWM"),
         peak_rss_scope="timed calls (weights included)" if peak_reset else "whole process",
