@@ -41,6 +41,30 @@ def run_case(case_dir, case, dtype):
     raise ValueError(f"unsupported component {component}")
 
 
+def check_synthetic_model(root, model_seed):
+    """bench.py's 'egopd' weights against a model folder written by `egopd-convert synth --seed S` (or bench
+    pipeline, S = 0): every U-Net and VAE tensor must be equal bit for bit. Returns the number of differing tensors."""
+    golden_ratio = 0x9E3779B97F4A7C15
+    bad = 0
+    # write_synthetic_model gives component k (unet 0, vae 1) the seed (S + k) * golden_ratio + 1.
+    for k, kind in enumerate(["unet", "vae"]):
+        seed = ((model_seed + k) * golden_ratio + 1) & sm.M64
+        folder = os.path.join(root, kind)
+        differ = total = 0
+        for path in sm.component_weight_files(folder):
+            with open(path, "rb") as f:
+                header = json.loads(f.read(int.from_bytes(f.read(8), "little")))
+            for name, t in sm.iter_safetensors(path):
+                stored = header[name]["dtype"].lower()
+                mine = sm.round_to(sm.egopd_synthetic(name, list(t.shape), seed), stored)
+                same = (mine.view("uint32") == t.numpy().reshape(-1).view("uint32")).all()
+                differ += not same
+                total += 1
+        print(f"synthetic {kind:5} {total:5} tensors, {differ} differ  {'pass' if differ == 0 else 'FAIL'}")
+        bad += differ
+    return bad
+
+
 def errors(out, expected):
     d = (out.double() - expected.double())
     return d.abs().max().item(), (d.norm() / expected.double().norm()).item()
@@ -52,6 +76,9 @@ def main():
     ap.add_argument("--golden", default=os.path.join(here, "..", "..", "tests", "data", "golden"),
                     help="golden cases folder (default: the repository's tests/data/golden)")
     ap.add_argument("--json", action="store_true", help="one JSON line per output instead of the table")
+    ap.add_argument("--synthetic-model", metavar="DIR",
+                    help="also check bench.py's egopd weights against this egopd synthetic model folder")
+    ap.add_argument("--model-seed", type=int, default=0, help="the --seed that folder was written with (default 0)")
     ap.add_argument("cases", nargs="*", default=CASES, help=f"case names (default: {' '.join(CASES)})")
     args = ap.parse_args()
     torch.set_num_threads(1)  # tiny cases: threads would only add noise to a shared machine
@@ -83,6 +110,8 @@ def main():
                       f"{a32:12.3e} {r32:11.3e}  {'pass' if ok else 'FAIL'}")
     if failed:
         print(f"{failed} output(s) outside tolerance", file=sys.stderr)
+    if args.synthetic_model:
+        failed += check_synthetic_model(args.synthetic_model, args.model_seed)
     return 1 if failed else 0
 
 

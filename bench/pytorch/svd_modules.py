@@ -76,6 +76,66 @@ def read_config(folder):
 
 
 # ----------------------------------------------------------------------------------------------------------------
+# egopd's synthetic benchmark weights (src/core/synthetic_weights.cpp), reproduced value for value
+
+M64 = (1 << 64) - 1
+
+
+def fnv1a(name):
+    h = 1469598103934665603
+    for c in name.encode():
+        h = ((h ^ c) * 1099511628211) & M64
+    return h
+
+
+def egopd_synthetic(name, shape, seed):
+    """The values of egopd's synthetic_values() (src/core/synthetic_weights.cpp) as float32: splitmix64 streams
+    keyed by the FNV-1a hash of the name, restarted every 65536 elements; uniform in +-1/sqrt(fan_in) for
+    matrices and kernels, +-0.02 for biases, 1 for norm scales, 0 for mix factors."""
+    n = math.prod(shape)
+    if name.endswith("mix_factor"):
+        return np.zeros(n, np.float32)
+    one_d = len(shape) <= 1
+    if one_d and name.endswith(".weight"):
+        return np.ones(n, np.float32)
+    bound = 0.02 if one_d else 1.0 / math.sqrt(max(1, n // shape[0]))
+    base = fnv1a(name) ^ ((seed * 0x2545F4914F6CDD1D) & M64)
+    c1, c2 = np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+    chunk = 1 << 16  # each chunk of 65536 values is one stream starting at state base + chunk start
+    steps = np.arange(1, chunk + 1, dtype=np.uint64) * np.uint64(0x9E3779B97F4A7C15)  # k golden-ratio increments
+    out = np.empty(n, np.float32)
+    z, t = np.empty(chunk, np.uint64), np.empty(chunk, np.float64)
+    with np.errstate(over="ignore"):
+        for c0 in range(0, n, chunk):
+            m = min(chunk, n - c0)
+            zz, tt = z[:m], t[:m]
+            np.add(steps[:m], np.uint64((base + c0) & M64), out=zz)
+            zz ^= zz >> np.uint64(30)
+            zz *= c1
+            zz ^= zz >> np.uint64(27)
+            zz *= c2
+            zz ^= zz >> np.uint64(31)
+            zz >>= np.uint64(11)
+            tt[:] = zz  # u = tt * 2^-53 exactly; then (2u - 1) * bound in double, as egopd computes it
+            tt *= 2.0 ** -52
+            tt -= 1.0
+            tt *= bound
+            out[c0:c0 + m] = tt
+    return out
+
+
+def round_to(values, wdtype):
+    """float32 values as stored in egopd's F16 / BF16 files (round to nearest even), back in float32."""
+    if wdtype == "f16":
+        return values.astype(np.float16).astype(np.float32)
+    if wdtype == "bf16":
+        bits = values.view(np.uint32).astype(np.uint64)
+        bits = (bits + 0x7FFF + ((bits >> 16) & 1)) >> 16 << 16
+        return bits.astype(np.uint32).view(np.float32)
+    return values
+
+
+# ----------------------------------------------------------------------------------------------------------------
 # Shared layers
 
 def sinusoidal_embedding(t, dim):
