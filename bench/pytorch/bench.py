@@ -70,14 +70,16 @@ def fill_synthetic(model, source, wdtype, seed=SYNTHETIC_SEED):
 
 
 def make_model(kind, cfg, args):
+    """(model, its config, a description of the weights)."""
     if args.weights in ("egopd", "seeded"):
         model = sm.build_model(kind, cfg).eval()
         fill_synthetic(model, args.weights, args.weights_dtype)
-        return model, f"{args.weights} synthetic, {args.weights_dtype} values, seed {SYNTHETIC_SEED}"
-    model = sm.load_model_streaming(kind, args.weights)  # a diffusers component folder (unet/ or vae/)
-    if kind == "unet" and bool(model.mid_block.attentions[0].transformer_blocks[0].pifr) != args.pifr:
+        return model, cfg, f"{args.weights} synthetic, {args.weights_dtype} values, seed {SYNTHETIC_SEED}"
+    cfg = sm.read_config(args.weights)  # a diffusers component folder (unet/ or vae/): its own sizes
+    model = sm.load_model_streaming(kind, args.weights)
+    if kind == "unet" and bool((cfg.get("pifr") or {}).get("enabled", False)) != args.pifr:
         raise SystemExit("bench: --pifr must match the model folder's config (pifr.enabled)")
-    return model, "folder " + os.path.basename(os.path.normpath(args.weights))
+    return model, cfg, "folder " + os.path.basename(os.path.normpath(args.weights))
 
 
 # ---- reporting ------------------------------------------------------------------------------------------------------
@@ -192,25 +194,27 @@ def main():
     lat = args.size // 8
     if args.target == "unet":
         cfg = dict(SVD_XT_UNET, pifr={"text_dim": 1024, "enabled": True} if args.pifr else None)
-        model, source = make_model("unet", cfg, args)
+        model, cfg, source = make_model("unet", cfg, args)
         b = args.batch
+        ctx = cfg["cross_attention_dim"]
+        ctx = ctx[0] if isinstance(ctx, list) else ctx
         # bench_unet.cpp's inputs, repeated over the batch (it runs one video)
-        sample = pattern([1, args.frames, 8, lat, lat], 7919).repeat(b, 1, 1, 1, 1)
-        ehs = pattern([1, 1, 1024], 104729).repeat(b, 1, 1)
+        sample = pattern([1, args.frames, cfg["in_channels"], lat, lat], 7919).repeat(b, 1, 1, 1, 1)
+        ehs = pattern([1, 1, ctx], 104729).repeat(b, 1, 1)
         ids = torch.tensor([[4.0, 127.0, 0.02]]).repeat(b, 1)
-        text = pattern([1, 77, 1024], 31).repeat(b, 1, 1) if args.pifr else None
+        text = pattern([1, 77, cfg["pifr"]["text_dim"]], 31).repeat(b, 1, 1) if args.pifr else None
         timestep = torch.tensor([UNET_TIMESTEP], dtype=torch.float32)
         call = lambda: model(sample, timestep, ehs, ids, text)  # noqa: E731
         report.update(frames=args.frames, size=args.size, latent=f"{lat}x{lat}", batch=b, pifr=args.pifr)
     else:
-        model, source = make_model("vae", SVD_XT_VAE, args)
+        model, cfg, source = make_model("vae", SVD_XT_VAE, args)
         if args.target == "vae_decode":
             chunk = args.decode_chunk or args.frames
-            latents = pattern([args.frames, 4, lat, lat], 7919)
+            latents = pattern([args.frames, cfg["latent_channels"], lat, lat], 7919)
             call = lambda: model.decode_latents(latents, args.frames, chunk)  # noqa: E731
             report.update(frames=args.frames, size=args.size, decode_chunk=chunk)
         else:
-            images = pattern([args.frames, 3, args.size, args.size], 7919)
+            images = pattern([args.frames, cfg["in_channels"], args.size, args.size], 7919)
             call = lambda: model.encode(images)[0]  # noqa: E731  (mode() = the mean, as egopd's encode_mean)
             report.update(frames=args.frames, size=args.size)
     weights_bytes = sum(p.numel() * p.element_size() for p in model.state_dict().values())
