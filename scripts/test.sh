@@ -3,7 +3,8 @@
 # a temporary prefix and build and run the C example and the Python module's tests against it
 # (tests/install/install_test.sh); then build the tests again with AddressSanitizer + UndefinedBehaviorSanitizer in
 # build-asan/ and run them there too; then fuzz every parser for a bounded time (scripts/fuzz.sh) and run a Slurm job
-# array on a one-node local cluster (tests/slurm/slurm_test.sh).
+# array on a one-node local cluster (tests/slurm/slurm_test.sh); last, cross-build for AArch64 and run the kernel,
+# model-component and golden tests under qemu-aarch64 on the neon and portable paths (scripts/test-arm64.sh --quick).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs=$(nproc 2>/dev/null || echo 2)
@@ -35,3 +36,6 @@ elif [ "${CI:-}" = "true" ]; then
 else
   echo "skipped: the local Slurm cluster needs root (run: sudo tests/slurm/slurm_test.sh)"
 fi
+
+echo "== AArch64: cross-build, kernel, component and golden tests under qemu-aarch64 (neon and portable paths) =="
+./scripts/test-arm64.sh --quick
