@@ -2,6 +2,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "cli/commands.h"
 #include "clip_text/clip_tokenizer.h"
@@ -15,8 +16,9 @@ int cmd_tokenize(const Args& a) {
   const bool json = a.flag("json");
   const bool has_pad = a.has("pad-id");
   const int64_t pad_override = a.get_int("pad-id", 0);
+  const std::vector<std::string>& texts = a.positional();  // read before finish(), which rejects unread arguments
   a.finish();
-  if (a.positional().empty()) throw Error("tokenize: give the text to tokenize (quote it)");
+  if (texts.empty()) throw Error("tokenize: give the text to tokenize (quote it)");
 
   ClipTokenizer tok = ClipTokenizer::load_dir(dir);
   if (has_pad) {
@@ -24,7 +26,7 @@ int cmd_tokenize(const Args& a) {
       throw Error("tokenize: --pad-id must be a vocabulary id (0.." + std::to_string(tok.vocab_size() - 1) + ")");
     tok.set_pad_id(pad_override);
   }
-  for (const auto& text : a.positional()) {
+  for (const auto& text : texts) {
     const TokenizedText t = tok.encode(text);
     if (t.truncated)
       std::fprintf(stderr, "egopd: warning: the prompt has %lld tokens; truncated to %lld (EOS kept last)\n",

@@ -60,6 +60,13 @@ expect_error "--threads expects an integer" "${p[@]}" --threads two
 expect_error "--decode-chunk must be between 1 and 1024" "${p[@]}" --decode-chunk 0
 expect_error "--guidance" "${p[@]}" --guidance abc
 expect_error "--sampler must be euler or lcm" "${p[@]}" --sampler ddim
+expect_error "--precision 'int4': expected fp32 or bf16" "${p[@]}" --precision int4
+expect_error "--precision needs a value" "${p[@]}" --precision
+expect_error "--conv 'fft': expected direct, winograd or auto" "${p[@]}" --conv fft
+expect_error "unknown option --precision" "$egopd" evaluate --pred a.csv --gt b.csv --precision bf16
+# Positional arguments where a command takes them: the text of tokenize (77 ids per text).
+ids=$("$egopd" tokenize "a cup" "of tea" --json 2>"$work/tok.log") || fail "tokenize TEXT: $(tail -1 "$work/tok.log")"
+[ "$(printf '%s\n' "$ids" | grep -c '"ids"')" = 2 ] || fail "tokenize: expected two lines of ids, got: $ids"
 expect_error "unexpected argument 'clip.mp4'" "$egopd" predict clip.mp4 --out "$out"
 expect_error "unknown option --bogus" "${p[@]}" --bogus 1
 expect_error "--prompt is not valid UTF-8" "${p[@]}" --prompt $'a \xff cup'
