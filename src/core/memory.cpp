@@ -4,8 +4,11 @@
 #include <unistd.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <fstream>
 #include <string>
+
+#include "core/error.h"
 
 namespace egopd {
 
@@ -33,6 +36,21 @@ void discard_pages(void* p, size_t bytes) {
   const uintptr_t begin = (reinterpret_cast<uintptr_t>(p) + page - 1) / page * page;
   const uintptr_t end = (reinterpret_cast<uintptr_t>(p) + bytes) / page * page;
   if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
+}
+
+AlignedScratch::~AlignedScratch() { std::free(p_); }
+
+float* AlignedScratch::get(size_t floats) {
+  if (floats > n_) {
+    std::free(p_);
+    p_ = nullptr;
+    n_ = 0;
+    const size_t bytes = (floats * sizeof(float) + 63) / 64 * 64;
+    p_ = static_cast<float*>(std::aligned_alloc(64, bytes));
+    if (!p_) throw Error("out of memory for " + std::to_string(bytes) + " bytes of kernel scratch");
+    n_ = bytes / sizeof(float);
+  }
+  return p_;
 }
 
 }  // namespace egopd

@@ -11,4 +11,19 @@ bool reset_peak_rss();
 // Gives the whole pages inside [p, p + bytes) of private anonymous memory back to the system. Only for memory that
 // is never read again before it is freed: those pages read back as zeros.
 void discard_pages(void* p, size_t bytes);
+
+// Grow-only 64-byte aligned float buffer (packing and transform scratch of the kernels, one per thread: OpenMP
+// threads persist, so it is allocated once). get(n) keeps the contents only while n does not grow.
+class AlignedScratch {
+ public:
+  AlignedScratch() = default;
+  AlignedScratch(const AlignedScratch&) = delete;
+  AlignedScratch& operator=(const AlignedScratch&) = delete;
+  ~AlignedScratch();
+  float* get(size_t floats);  // an Error naming the size when memory runs out
+
+ private:
+  float* p_ = nullptr;
+  size_t n_ = 0;
+};
 }  // namespace egopd

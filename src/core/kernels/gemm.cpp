@@ -15,6 +15,7 @@
 
 #include "core/error.h"
 #include "core/kernels/gemm_internal.h"
+#include "core/memory.h"
 #include "core/threading.h"
 
 namespace egopd {
@@ -55,26 +56,7 @@ namespace {
 
 constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
 
-// Grow-only 64-byte aligned scratch, one per thread (OpenMP threads persist, so it is allocated once).
-class Scratch {
- public:
-  ~Scratch() { std::free(p_); }
-  float* get(size_t n) {
-    if (n > n_) {
-      std::free(p_);
-      size_t bytes = (n * sizeof(float) + 63) / 64 * 64;
-      p_ = static_cast<float*>(std::aligned_alloc(64, bytes));
-      if (!p_) throw Error("gemm: out of memory for " + std::to_string(bytes) + " bytes of packing scratch");
-      n_ = bytes / sizeof(float);
-    }
-    return p_;
-  }
-
- private:
-  float* p_ = nullptr;
-  size_t n_ = 0;
-};
-thread_local Scratch tl_pack;  // the calling thread's; team threads get slices (no allocation inside a region)
+thread_local AlignedScratch tl_pack;  // the calling thread's; team threads get slices (no allocation inside a region)
 
 int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 

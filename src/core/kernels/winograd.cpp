@@ -12,8 +12,6 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <memory>
-#include <new>
 #include <string>
 
 #include "core/error.h"
@@ -21,6 +19,7 @@
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 #include "core/kernels/winograd_transforms.h"
+#include "core/memory.h"
 #include "core/threading.h"
 
 namespace egopd {
@@ -67,18 +66,8 @@ int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
 // The calling thread's scratch, 64-byte aligned (the B panels the micro-kernels load must be), grown on demand.
 float* thread_scratch(size_t floats) {
-  struct AlignedDelete {
-    void operator()(float* p) const { ::operator delete[](p, std::align_val_t(64)); }
-  };
-  thread_local std::unique_ptr<float[], AlignedDelete> buf;
-  thread_local size_t size = 0;
-  if (floats > size) {
-    buf.reset();
-    size = 0;
-    buf.reset(static_cast<float*>(::operator new[](floats * sizeof(float), std::align_val_t(64))));
-    size = floats;
-  }
-  return buf.get();
+  thread_local AlignedScratch buf;
+  return buf.get(floats);
 }
 
 // The segments of the panel of tiles [g0, g0 + nt) (tile g: frame g / tpf, row-major inside the frame).
