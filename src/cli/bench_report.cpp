@@ -56,6 +56,7 @@ void print_bench_report(const BenchReport& r, bool json) {
   j["kernel_features"] = kernel_path_features(kernel_path());
   j["precision"] = precision_name(precision());
   if (precision() == Precision::Bf16) j["bf16"] = bf16_native() ? "native (vdpbf16ps)" : "emulated";
+  if (precision() == Precision::Int8) j["int8"] = int8_kernel();
   j["peak_rss_bytes"] = peak_rss_bytes();
   j["version"] = EGOPD_VERSION;
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();

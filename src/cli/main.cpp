@@ -148,10 +148,13 @@ void print_help() {
       "                auto): direct, Winograd F(4x4,3x3) (F(2x2,3x3) on frames under 8 pixels), or auto:\n"
       "                Winograd on layers with 16+ channels, 4x4+ frames and 1024+ pixels over all frames (512+\n"
       "                under 8x8), else direct.\n"
-      "  --precision fp32|bf16   arithmetic of the linear layers and convolutions (predict, counterfactual, batch,\n"
-      "                bench, forward; default fp32). bf16: operands rounded to bfloat16, float32 sums; vdpbf16ps on\n"
-      "                CPUs with AVX512-BF16, an exact but slower emulation elsewhere. Attention scores, softmax,\n"
-      "                norms and the sampler stay float32. Check its error on your model against an fp32 run.\n"
+      "  --precision fp32|bf16|int8   arithmetic of the linear layers and convolutions (predict, counterfactual,\n"
+      "                batch, bench, forward; default fp32). bf16: operands rounded to bfloat16, float32 sums;\n"
+      "                vdpbf16ps on CPUs with AVX512-BF16, an exact but slower emulation elsewhere. int8: operands\n"
+      "                quantised to int8 with a dynamic scale per row/column and K block of 512, exact int32 sums;\n"
+      "                vpdpbusd on AVX512-VNNI, vpmaddwd on AVX2, an exact but slower emulation elsewhere. Attention\n"
+      "                scores, softmax, norms and the sampler stay float32. Check the error on your model against\n"
+      "                an fp32 run (egopd bench pipeline --save-result / --compare-to).\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
       "  EGOPD_CONV      default of --conv\n"
@@ -200,7 +203,7 @@ int run(int argc, char** argv) {
         a.has("precision")) {
       const std::string v = a.get("precision", "fp32");
       Precision p;
-      if (!parse_precision(v.c_str(), &p)) throw Error(name + ": --precision '" + v + "': expected fp32 or bf16");
+      if (!parse_precision(v.c_str(), &p)) throw Error(name + ": --precision '" + v + "': expected fp32, bf16 or int8");
       set_precision(p);
     }
     return c.run(a);

@@ -60,7 +60,7 @@ expect_error "--threads expects an integer" "${p[@]}" --threads two
 expect_error "--decode-chunk must be between 1 and 1024" "${p[@]}" --decode-chunk 0
 expect_error "--guidance" "${p[@]}" --guidance abc
 expect_error "--sampler must be euler or lcm" "${p[@]}" --sampler ddim
-expect_error "--precision 'int4': expected fp32 or bf16" "${p[@]}" --precision int4
+expect_error "--precision 'int4': expected fp32, bf16 or int8" "${p[@]}" --precision int4
 expect_error "--precision needs a value" "${p[@]}" --precision
 expect_error "--conv 'fft': expected direct, winograd or auto" "${p[@]}" --conv fft
 expect_error "unknown option --precision" "$egopd" evaluate --pred a.csv --gt b.csv --precision bf16

@@ -7,8 +7,10 @@
 #include "core/kernel_reference.h"
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <random>
 #include <string>
@@ -81,6 +83,7 @@ struct Case {
   int bias = 0;  // 0 none, 1 per column, 2 per row
   bool accumulate = false;
   bool bf16 = false;  // Precision::Bf16: the reference multiplies the operands rounded to bfloat16
+  bool int8 = false;  // Precision::Int8: the reference multiplies the operands quantised per K block (Int8Reference)
 };
 
 double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
@@ -89,8 +92,57 @@ std::string describe(const Case& c) {
   return std::to_string(c.M) + "x" + std::to_string(c.N) + "x" + std::to_string(c.K) + " A " + dtype_name(c.adt) +
          (c.ta ? "^T" : "") + " B " + dtype_name(c.bdt) + (c.tb ? "^T" : "") + " act " +
          std::to_string(int(c.act)) + " bias " + std::to_string(c.bias) + (c.accumulate ? " acc" : "") +
-         (c.bf16 ? " bf16" : "");
+         (c.bf16 ? " bf16" : "") + (c.int8 ? " int8" : "");
 }
+
+// Precision::Int8 as gemm.h defines it, written out plainly: K in balanced blocks of at most kInt8Block; in each,
+// every row of A and column of B gets m = max|x|, q = nearbyint(x * (127 / m)) clamped to +-127 (float32
+// arithmetic, zeros when m <= 1e-30) and the scale m / 127. dot() is the exact sum over blocks of
+// (sum of q_a q_b) * s_a * s_b in double, and the sum of the magnitudes of its terms.
+struct Int8Reference {
+  struct Lanes {
+    std::vector<int32_t> q;  // q[lane * len + k]
+    std::vector<double> scale;
+  };
+  std::vector<int64_t> starts;  // block b covers K indices [starts[b], starts[b + 1])
+  std::vector<Lanes> a, b;      // per block: A's rows, B's columns
+
+  static Lanes quantize(int64_t lanes, int64_t k0, int64_t k1, const std::function<float(int64_t, int64_t)>& x) {
+    Lanes l;
+    l.q.resize(size_t(lanes * (k1 - k0)));
+    for (int64_t i = 0; i < lanes; ++i) {
+      float m = 0.0f;
+      for (int64_t k = k0; k < k1; ++k) m = std::max(m, std::fabs(x(i, k)));
+      const float inv = m > 1e-30f ? 127.0f / m : 0.0f;
+      l.scale.push_back(m > 1e-30f ? double(m / 127.0f) : 0.0);
+      for (int64_t k = k0; k < k1; ++k)
+        l.q[size_t(i * (k1 - k0) + k - k0)] = int32_t(std::clamp(std::nearbyint(x(i, k) * inv), -127.0f, 127.0f));
+    }
+    return l;
+  }
+  Int8Reference(const StoredMatrix& A, const StoredMatrix& B, int64_t M, int64_t N, int64_t K) {
+    const int64_t blocks = std::max<int64_t>(1, (K + kInt8Block - 1) / kInt8Block), len = (K + blocks - 1) / blocks;
+    for (int64_t k0 = 0; k0 < K || k0 == 0; k0 += len) {
+      const int64_t k1 = std::min(K, k0 + len);
+      starts.push_back(k0);
+      a.push_back(quantize(M, k0, k1, [&](int64_t i, int64_t k) { return float(A.at(i, k)); }));
+      b.push_back(quantize(N, k0, k1, [&](int64_t j, int64_t k) { return float(B.at(k, j)); }));
+      if (k1 >= K) break;
+    }
+    starts.push_back(K);
+  }
+  void dot(int64_t i, int64_t j, double* sum, double* magnitude) const {
+    *sum = *magnitude = 0;
+    for (size_t blk = 0; blk < a.size(); ++blk) {
+      const int64_t len = starts[blk + 1] - starts[blk];
+      int64_t s = 0;
+      for (int64_t k = 0; k < len; ++k) s += int64_t(a[blk].q[size_t(i * len + k)]) * b[blk].q[size_t(j * len + k)];
+      const double term = double(s) * a[blk].scale[size_t(i)] * b[blk].scale[size_t(j)];
+      *sum += term;
+      *magnitude += std::fabs(term);
+    }
+  }
+};
 
 // Runs gemm on one case and checks every element against the bound; returns the number of failures.
 int run_case(const Case& c, uint32_t seed) {
@@ -108,14 +160,19 @@ int run_case(const Case& c, uint32_t seed) {
   ep.bias_per_row = c.bias == 2;
   ep.act = c.act;
   ep.accumulate = c.accumulate;
-  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
+  set_precision(c.int8 ? Precision::Int8 : c.bf16 ? Precision::Bf16 : Precision::Fp32);
   gemm(c.M, c.N, c.K, A.operand(), B.operand(), C.data(), ldc, ep);
   set_precision(Precision::Fp32);
+  std::optional<Int8Reference> q8;
+  if (c.int8) q8.emplace(A, B, c.M, c.N, c.K);
   int bad = 0;
   for (int64_t i = 0; i < c.M; ++i)
     for (int64_t j = 0; j < c.N; ++j) {
       double s = 0, sa = 0;
-      for (int64_t k = 0; k < c.K; ++k) {
+      // Int8: each block's term is rounded twice (the scale product, the scaled sum) and added to C in float32:
+      // the float32 bound below with one "product" per block.
+      if (q8) q8->dot(i, j, &s, &sa);
+      for (int64_t k = 0; k < (q8 ? 0 : c.K); ++k) {
         const double a = c.bf16 ? round_bf16(A.at(i, k)) : A.at(i, k), b = c.bf16 ? round_bf16(B.at(k, j)) : B.at(k, j);
         s += a * b;
         sa += std::fabs(a * b);
@@ -127,7 +184,8 @@ int run_case(const Case& c, uint32_t seed) {
       }
       double ref = act_ref(c.act, s);
       const double lip = c.act == Act::None ? 1.0 : 1.2;
-      double tol = lip * 2.0 * double(c.K + 3) * kU * sa + 8 * kU * std::fabs(ref) + 1e-30;
+      const double terms = q8 ? double(q8->a.size()) : double(c.K);
+      double tol = lip * 2.0 * (terms + 3) * kU * sa + 8 * kU * std::fabs(ref) + 1e-30;
       if (c.accumulate) {
         ref += C0[size_t(i * ldc + j)];
         tol += 4 * kU * (std::fabs(C0[size_t(i * ldc + j)]) + std::fabs(ref));
@@ -289,8 +347,59 @@ TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
     }
 }
 
+// Precision::Int8 (vpdpbusd, vpmaddwd or the scalar emulation, whichever the path has): exactly the products of the
+// operands quantised as gemm.h defines, against the reference above, so a wrong scale, rounding, block split, sign
+// offset or lost K tail fails by whole quantisation steps. Odd K (quad and pair tails), one and several K blocks,
+// every operand dtype, transposes, tails and epilogues.
+TEST_P(GemmTest, Int8ComputeMultipliesQuantisedOperands) {
+  uint32_t seed = 900;
+  for (int64_t M : {1, 7, 12, 13, 50})
+    for (int64_t N : {1, 15, 32, 33, 70})
+      for (int64_t K : {1, 2, 3, 5, 31, 700})
+        for (int t = 0; t < 4; ++t) {
+          Case c{M, N, K};
+          c.ta = t & 1;
+          c.tb = t & 2;
+          c.int8 = true;
+          ASSERT_EQ(run_case(c, seed++), 0);
+        }
+  for (DType dt : {DType::F16, DType::BF16, DType::I8})
+    for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{37, 50, 45}, {130, 70, 1537}}) {
+      Case b{M, N, K, DType::F32, dt, false, true};
+      Case a{M, N, K, dt, DType::F32, false, false};
+      b.int8 = a.int8 = true;
+      b.bias = 1, a.bias = 2;
+      b.act = Act::GELU, a.accumulate = true;
+      ASSERT_EQ(run_case(b, seed++), 0);
+      ASSERT_EQ(run_case(a, seed++), 0);
+    }
+}
+
+// The same int8 result on 1 and 2 threads (splitting M and N) and on every path (bit for bit: the int32 sums are
+// exact and each path scales them with the same float32 operations; no activation, whose SIMD polynomials differ).
+TEST(GemmInt8Test, ThreadsAndPathsAgreeBitForBit) {
+  const int saved = num_threads();
+  std::mt19937 rng(77);
+  for (int64_t N : {40, 300}) {
+    StoredMatrix A(200, 700, false, DType::F32, true, rng), B(700, N, true, DType::F16, false, rng);
+    std::vector<float> first;
+    for (KernelPath p : supported_kernel_paths())
+      for (int threads : {1, 2}) {
+        test::KernelPathGuard guard(p);
+        set_num_threads(threads);
+        set_precision(Precision::Int8);
+        std::vector<float> c(size_t(200 * N));
+        gemm(200, N, 700, A.operand(), B.operand(), c.data(), N);
+        set_precision(Precision::Fp32);
+        if (first.empty()) first = c;
+        EXPECT_EQ(c, first) << kernel_path_name(p) << ", " << threads << " threads, N = " << N;
+      }
+  }
+  set_num_threads(saved);
+}
+
 TEST(PrecisionTest, NamesParseBack) {
-  for (Precision p : {Precision::Fp32, Precision::Bf16}) {
+  for (Precision p : {Precision::Fp32, Precision::Bf16, Precision::Int8}) {
     Precision q = p == Precision::Fp32 ? Precision::Bf16 : Precision::Fp32;
     EXPECT_TRUE(parse_precision(precision_name(p), &q));
     EXPECT_EQ(q, p);

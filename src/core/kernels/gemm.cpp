@@ -34,10 +34,16 @@ namespace {
 Precision g_precision = Precision::Fp32;
 }
 
-const char* precision_name(Precision p) { return p == Precision::Bf16 ? "bf16" : "fp32"; }
+const char* precision_name(Precision p) {
+  switch (p) {
+    case Precision::Bf16: return "bf16";
+    case Precision::Int8: return "int8";
+    default: return "fp32";
+  }
+}
 
 bool parse_precision(const char* name, Precision* out) {
-  for (Precision p : {Precision::Fp32, Precision::Bf16})
+  for (Precision p : {Precision::Fp32, Precision::Bf16, Precision::Int8})
     if (std::string(name) == precision_name(p)) return *out = p, true;
   return false;
 }
@@ -45,6 +51,7 @@ bool parse_precision(const char* name, Precision* out) {
 Precision precision() { return g_precision; }
 void set_precision(Precision p) { g_precision = p; }
 bool bf16_native() { return gemm_detail::gemm_path().micro_bf16 != nullptr; }
+const char* int8_kernel() { return gemm_detail::gemm_path().i8_kernel; }
 
 namespace gemm_detail {
 
@@ -55,6 +62,7 @@ void round_to_bf16(float* p, int64_t n) {
 namespace {
 
 constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
+constexpr int64_t kInt8GroupsPerPass = 4;  // int8 B micro-panel of 4 x 512 x 32 bytes: 64 KiB, in L2
 
 thread_local AlignedScratch tl_pack;  // the calling thread's; team threads get slices (no allocation inside a region)
 
@@ -87,19 +95,31 @@ void run_gemm(const GemmJob& job) {
   if (M <= 0 || job.segments <= 0 || job.seg_cols <= 0) return;
   const GemmPath& path = gemm_path();
   const int MR = path.mr, NR = path.nr;
-  const int64_t kKcMax = path.kc, kMcMax = path.mc, kNcMax = path.nc;
-  const int64_t npc = std::max<int64_t>(1, ceil_div(K, kKcMax));
-  const int64_t kc_blk = K > 0 ? ceil_div(K, npc) : 0;
+  const bool int8 = precision() == Precision::Int8 && K > 0;
+  const int64_t kMcMax = path.mc, kNcMax = path.nc;
+  // Int8: K in balanced quantisation groups of at most kInt8Block (gemm.h), a K pass of up to kInt8GroupsPerPass
+  // whole groups (the micro-kernel sums the groups of a pass in registers, so C is read and written once per pass).
+  const int64_t i8_group = int8 ? ceil_div(K, ceil_div(K, kInt8Block)) : 0;
+  // Bf16 pairs take half the bytes of float32: twice the depth per K pass fills the same cache, and C is read and
+  // written half as often.
+  const bool bf16 = precision() == Precision::Bf16, bf16_pairs = bf16 && path.micro_bf16;
+  const int64_t kc_max = bf16_pairs ? 2 * path.kc : path.kc;
+  const int64_t kc_blk = int8 ? i8_group * std::min(kInt8GroupsPerPass, ceil_div(K, i8_group))
+                              : K > 0 ? ceil_div(K, ceil_div(K, kc_max)) : 0;
+  const int64_t npc = kc_blk > 0 ? ceil_div(K, kc_blk) : 1;
+  // Floats between consecutive packed panels of one lane (per MR rows / NR columns): an int8 panel is written over
+  // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
+  const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
 
   // Bf16: every packed panel is rounded (emulated) or turned into bfloat16 pairs (native) right after packing, so A
   // is always packed.
-  const bool bf16 = precision() == Precision::Bf16, bf16_pairs = bf16 && path.micro_bf16;
   const auto to_bf16 = [&](float* panel, int width, int64_t kc) {
     if (bf16_pairs) path.to_bf16_pairs(panel, width, kc);
     else round_to_bf16(panel, kc * width);
   };
-  const MicroKernel uk = bf16_pairs ? path.micro_bf16 : path.micro;
+  // Int8: every packed panel is quantised in place (see GemmPath::quantize_a_i8), so A is always packed too.
+  const MicroKernel uk = int8 ? path.micro_i8 : bf16_pairs ? path.micro_bf16 : path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
   const int64_t npanels = job.segments * panels_per_seg;
   const int64_t njc = ceil_div(npanels * NR, kNcMax);
@@ -113,16 +133,16 @@ void run_gemm(const GemmJob& job) {
   // reuses them over all rows, with no barrier and no cache lines shared between cores (measured faster than
   // splitting M on every U-Net shape, linear and convolution). Splitting M (shared B blocks, one barrier per
   // block, dynamic row chunks) is for narrow outputs.
+  const bool direct_a = job.a->direct != nullptr && path.a_in_place && !bf16 && !int8;
   const bool split_m = npanels < int64_t(threads) * 4 && mpanels >= npanels;
   threads = int(std::min<int64_t>(threads, split_m ? mpanels : npanels));
 
-  const bool direct_a = job.a->direct != nullptr && path.a_in_place && !bf16;
   // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
   // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
   // with the size of the column block).
-  const int64_t b_block = kc_blk * (jc_panels + (split_m ? 0 : threads)) * NR;  // floats of one B block
+  const int64_t b_block = kc_slot * (jc_panels + (split_m ? 0 : threads)) * NR;  // floats of one B block
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
-  const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_blk + 15) / 16 * 16;  // floats of one thread's A block
+  const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_slot + 15) / 16 * 16;  // floats of one thread's A block
   const int64_t b_floats = b_block * (double_buffer ? 2 : 1);
   float* const scratch = tl_pack.get(size_t(b_floats + int64_t(threads) * a_slice) + 16);
   float* const b_shared = scratch;
@@ -162,9 +182,10 @@ void run_gemm(const GemmJob& job) {
         for (int64_t p = pk_lo; p < pk_hi; ++p) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-          float* panel = b_pack + panel_slot(p) * kc_blk * NR;
+          float* panel = b_pack + panel_slot(p) * kc_slot * NR;
           job.b->pack(path, seg, k0, kc, n0, nr, panel);
           if (bf16) to_bf16(panel, NR, kc);
+          if (int8) path.quantize_b_i8(panel, NR, kc, i8_group);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -174,6 +195,7 @@ void run_gemm(const GemmJob& job) {
         te.act = last ? ep.act : Act::None;
         te.load_c = pc > 0 || (ep.accumulate && ep.act == Act::None);
         te.add_after = ep.accumulate && ep.act != Act::None;
+        te.i8_group = i8_group;
         const float* bias_row = last && ep.bias && ep.bias_per_row ? ep.bias : nullptr;
         const float* bias_col = last && ep.bias && !ep.bias_per_row ? ep.bias : nullptr;
         // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.
@@ -182,13 +204,15 @@ void run_gemm(const GemmJob& job) {
           const int64_t ic = chunk * chunk_rows, mc = std::min(chunk_rows, M - ic);
           if (!direct_a)
             for (int64_t ir = 0; ir < mc; ir += MR) {
-              job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, a_pack + ir * kc);
-              if (bf16) to_bf16(a_pack + ir * kc, MR, kc);
+              float* panel = a_pack + ir * kc_slot;
+              job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, panel);
+              if (bf16) to_bf16(panel, MR, kc);
+              if (int8) path.quantize_a_i8(panel, MR, kc, i8_group);
             }
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-            const float* bp = b_pack + panel_slot(p) * kc_blk * NR;
+            const float* bp = b_pack + panel_slot(p) * kc_slot * NR;
             float* cp = job.c + seg * job.c_seg_stride + n0;
             te.bias_col = bias_col ? bias_col + n0 : nullptr;
             for (int64_t ir = 0; ir < mc; ir += MR) {
@@ -198,7 +222,7 @@ void run_gemm(const GemmJob& job) {
               if (direct_a)
                 uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
               else
-                uk(kc, a_pack + ir * kc, 1, MR, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
+                uk(kc, a_pack + ir * kc_slot, 1, MR, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
             }
           }
         }

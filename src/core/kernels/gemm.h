@@ -38,15 +38,26 @@ void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, f
 //   Bf16: both operands rounded to bfloat16 (nearest even) as they are packed, float32 accumulation. On CPUs with
 //         AVX512-BF16 `vdpbf16ps` multiplies them (two products per lane and instruction); elsewhere the float32
 //         micro-kernel multiplies the rounded values: the same exact products, only slower than Fp32.
+//   Int8: both operands quantised symmetrically to int8 as they are packed, with one dynamic scale per row of A and
+//         per column of B (per token and per output channel of a linear layer; per output channel and per pixel of
+//         a convolution) in each block of at most kInt8Block of K: s = max|x| / 127, q = nearbyint(x * (127 / max))
+//         (float32 arithmetic; a lane whose max is below 1e-30 quantises to zeros). The int8 products are summed
+//         exactly in int32 and each block adds fma(float(sum), s_row * s_col, .) to the float32 result. q8 weights are
+//         dequantised and requantised per block (exact where the block holds the channel's largest value).
+//         Native kernels: `vpdpbusd` on AVX512-VNNI, `vpmaddwd` on AVX2; elsewhere (portable, NEON, AVX-512
+//         without VNNI) an exact scalar emulation (the same numbers, slower than Fp32).
 // Attention scores, softmax, norms and activations stay float32 in every mode.
-enum class Precision : uint8_t { Fp32, Bf16 };
-const char* precision_name(Precision p);                     // "fp32", "bf16"
+enum class Precision : uint8_t { Fp32, Bf16, Int8 };
+constexpr int64_t kInt8Block = 512;                          // K block of one int8 scale (int32 sums stay exact)
+const char* precision_name(Precision p);                     // "fp32", "bf16", "int8"
 bool parse_precision(const char* name, Precision* out);      // false for an unknown name
 Precision precision();
 // Use precision p from now on. Not thread-safe: call it between kernel calls, never during one.
 void set_precision(Precision p);
 // Where Bf16 runs natively (vdpbf16ps) on the kernel path in use, or emulated.
 bool bf16_native();
+// How Int8 runs on the kernel path in use: "vpdpbusd (AVX512-VNNI)", "vpmaddwd (AVX2)" or "emulated".
+const char* int8_kernel();
 
 // Scalar reference of the epilogue activations (shared by kernels and tests).
 float apply_act(Act act, float x);

@@ -32,6 +32,7 @@ struct TileEpilogue {
   Act act = Act::None;
   bool load_c = false;
   bool add_after = false;
+  int64_t i8_group = 0;  // Precision::Int8: rows of one quantisation group of the panels (see I8Group)
 };
 
 // A is read as a[i*a_rs + k*a_cs]: a packed micro-panel (a_rs = 1, a_cs = MR), or F32 row-major A in place
@@ -68,6 +69,13 @@ struct GemmPath {
   // (x(kc, i) = 0 for odd kc). micro_bf16 multiplies such A and B panels (kc is still the float32 depth).
   void (*to_bf16_pairs)(float* panel, int width, int64_t kc) = nullptr;
   MicroKernel micro_bf16 = nullptr;
+  // Precision::Int8: quantise a packed float32 panel of `width` (MR or NR) lanes and kc rows in place, `group`
+  // rows at a time (see I8Group), A's and B's in the format micro_i8 multiplies (group: TileEpilogue::i8_group);
+  // i8_kernel says which instructions it uses.
+  void (*quantize_a_i8)(float* panel, int width, int64_t kc, int64_t group) = nullptr;
+  void (*quantize_b_i8)(float* panel, int width, int64_t kc, int64_t group) = nullptr;
+  MicroKernel micro_i8 = nullptr;
+  const char* i8_kernel = "emulated";
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
   int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
   int64_t nc = 2048;  // columns of a B block shared by the team
@@ -87,6 +95,45 @@ void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 void microkernel_avx512_bf16(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void to_bf16_pairs_avx512(float* panel, int width, int64_t kc);
+// ---- Int8 panels (Precision::Int8) ----
+// A packed float32 panel of `width` lanes and kc rows is quantised in place in groups of `group` rows (gemm.h's K
+// blocks; the last group of K may be shorter). Group g becomes a region of i8_region(width, group, per) floats at
+// float g * i8_region(...): the lanes' int8 values, `per` (4: quads, 2: pairs) k at a time in one 32-bit slot per
+// lane, ceil(len/per) rows of `width` slots (values past the group's length are 0); then, at slot row
+// ceil(group/per), `width` float scales and `width` int32 sums of each lane's values. Quads hold bytes (byte t of
+// slot p*width + i is q(4p + t, i), offset by +128 when unsigned: vpdpbusd's unsigned operand); pairs hold int16
+// (low half q(2p, i), high half q(2p + 1, i): vpmaddwd's operands). A region never extends past the floats of its
+// group (group > 2 * per when there are several), so each group is written over floats already read.
+inline int64_t i8_slot_rows(int64_t len, int per) { return (len + per - 1) / per; }
+inline int64_t i8_region(int width, int64_t group, int per) { return (i8_slot_rows(group, per) + 2) * width; }
+struct I8Group {
+  const int32_t* slots;
+  const float* scale;
+  const int32_t* sum;
+  I8Group(const float* panel, int width, int64_t group, int per, int64_t g) {
+    const float* base = panel + g * i8_region(width, group, per);
+    slots = reinterpret_cast<const int32_t*>(base);
+    scale = base + i8_slot_rows(group, per) * width;
+    sum = reinterpret_cast<const int32_t*>(scale + width);
+  }
+};
+// Scale of one lane from its largest magnitude m, and the factor that quantises it (gemm.h: Precision::Int8).
+inline float i8_scale(float m) { return m > 1e-30f ? m / 127.0f : 0.0f; }
+inline float i8_inverse(float m) { return m > 1e-30f ? 127.0f / m : 0.0f; }
+// Scalar quantisers (any path) and the exact scalar micro-kernel of quad panels (signed bytes).
+void quantize_i8_quads(float* panel, int width, int64_t kc, int64_t group, bool unsigned_bytes);
+void quantize_i8_pairs(float* panel, int width, int64_t kc, int64_t group);
+template <int MR, int NR>
+void microkernel_i8_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                             int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+void quantize_i8_a_avx512_vnni(float* panel, int width, int64_t kc, int64_t group);
+void quantize_i8_b_avx512_vnni(float* panel, int width, int64_t kc, int64_t group);
+void microkernel_avx512_vnni(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                             int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+void quantize_i8_pairs_avx2(float* panel, int width, int64_t kc, int64_t group);
+void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                         int64_t ldc, int mr, int nr, const TileEpilogue& ep);
+
 // Emulated Bf16: x = float(bf16(x)) (nearest even) for n floats in place.
 void round_to_bf16(float* p, int64_t n);
 // Scalar epilogue of one tile from an MR x 16 sum (row stride 16); the partial tiles of the portable, AVX2 and

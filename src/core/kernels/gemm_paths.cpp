@@ -41,32 +41,57 @@ GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
   return p;
 }
 
+// Int8 by the exact scalar micro-kernel (signed quads), for paths without an int8 dot product.
+template <int MR, int NR>
+GemmPath with_emulated_int8(GemmPath p) {
+  p.quantize_a_i8 = p.quantize_b_i8 = [](float* panel, int width, int64_t kc, int64_t group) {
+    quantize_i8_quads(panel, width, kc, group, false);
+  };
+  p.micro_i8 = microkernel_i8_portable<MR, NR>;
+  p.i8_kernel = "emulated";
+  return p;
+}
+
 }  // namespace
 
 const GemmPath& gemm_path(KernelPath which) {
   using namespace conv_detail;
-  static const GemmPath portable =
+  static const GemmPath portable = with_emulated_int8<kMrPortable, kNrPortable>(
       with_blocking({kMrPortable, kNrPortable, microkernel_portable, true, pack_a_portable<kMrPortable>,
                      pack_b_portable<kNrPortable>, pack_im2col_shift_portable, nullptr},
-                    false);
+                    false));
 #if defined(__x86_64__)
-  static const GemmPath avx2 = with_blocking({kMrAvx2, kNrAvx2, microkernel_avx2, true, pack_a_avx2, pack_b_avx2,
-                                              pack_im2col_shift_avx2, pack_a_temporal6_avx2},
-                                             false);
+  static const GemmPath avx2 = [] {
+    GemmPath p = with_blocking({kMrAvx2, kNrAvx2, microkernel_avx2, true, pack_a_avx2, pack_b_avx2,
+                                pack_im2col_shift_avx2, pack_a_temporal6_avx2},
+                               false);
+    p.quantize_a_i8 = p.quantize_b_i8 = quantize_i8_pairs_avx2;
+    p.micro_i8 = microkernel_avx2_i8;
+    p.i8_kernel = "vpmaddwd (AVX2)";
+    return p;
+  }();
   static const GemmPath avx512 = [] {
     GemmPath p = with_blocking({kMrAvx512, kNrAvx512, microkernel_avx512, true, pack_a_avx512, pack_b_avx512,
                                 pack_im2col_shift_avx512, nullptr},
                                true);
     if (cpu_info().avx512_bf16) p.to_bf16_pairs = to_bf16_pairs_avx512, p.micro_bf16 = microkernel_avx512_bf16;
+    p = with_emulated_int8<kMrAvx512, kNrAvx512>(p);
+    if (cpu_info().avx512_vnni) {
+      p.quantize_a_i8 = quantize_i8_a_avx512_vnni;
+      p.quantize_b_i8 = quantize_i8_b_avx512_vnni;
+      p.micro_i8 = microkernel_avx512_vnni;
+      p.i8_kernel = "vpdpbusd (AVX512-VNNI)";
+    }
     return p;
   }();
   if (which == KernelPath::Avx512) return avx512;
   if (which == KernelPath::Avx2) return avx2;
 #elif defined(__aarch64__)
   // A is always packed (an 8-row column is two loads; in place it would be eight).
-  static const GemmPath neon = with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon,
-                                              pack_im2col_shift_neon, nullptr},
-                                             false);
+  static const GemmPath neon = with_emulated_int8<kMrNeon, kNrNeon>(
+      with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon, pack_im2col_shift_neon,
+                     nullptr},
+                    false));
   if (which == KernelPath::Neon) return neon;
 #endif
   return portable;

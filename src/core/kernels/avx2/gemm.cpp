@@ -1,5 +1,6 @@
 // AVX2/FMA/F16C micro-kernel (6 x 16, 12 ymm accumulators) and packing with on-the-fly F16/BF16 conversion.
 // Only reached through the avx2 and avx512 kernel paths; everything below the pragma is plain static code (no library inlines).
+#include <algorithm>
 #include <cstdint>
 
 #include "core/kernels/gemm_internal.h"
@@ -70,6 +71,29 @@ inline void store_row(float* c, __m256 v0, __m256 v1, int i, const TileEpilogue&
   _mm256_storeu_ps(c + 8, v1);
 }
 
+// The 6 x 16 tile (row i: v<i>0, v<i>1) into C, mr x nr of it.
+__attribute__((always_inline)) inline void store_tile(float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep,
+                                                      __m256 v00, __m256 v01, __m256 v10, __m256 v11, __m256 v20,
+                                                      __m256 v21, __m256 v30, __m256 v31, __m256 v40, __m256 v41,
+                                                      __m256 v50, __m256 v51) {
+  if (mr == MR && nr == NR) {
+    store_row(c, v00, v01, 0, ep);
+    store_row(c + ldc, v10, v11, 1, ep);
+    store_row(c + 2 * ldc, v20, v21, 2, ep);
+    store_row(c + 3 * ldc, v30, v31, 3, ep);
+    store_row(c + 4 * ldc, v40, v41, 4, ep);
+    store_row(c + 5 * ldc, v50, v51, 5, ep);
+    return;
+  }
+  alignas(32) float sum[MR * NR];
+  const __m256 rows[MR][2] = {{v00, v01}, {v10, v11}, {v20, v21}, {v30, v31}, {v40, v41}, {v50, v51}};
+  for (int i = 0; i < MR; ++i) {
+    _mm256_store_ps(sum + i * NR, rows[i][0]);
+    _mm256_store_ps(sum + i * NR + 8, rows[i][1]);
+  }
+  store_tile_scalar(sum, c, ldc, mr, nr, ep);
+}
+
 }  // namespace
 
 void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
@@ -133,33 +157,122 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
       }
     }
   }
-  if (mr == MR && nr == NR) {
-    store_row(c, c00, c01, 0, ep);
-    store_row(c + ldc, c10, c11, 1, ep);
-    store_row(c + 2 * ldc, c20, c21, 2, ep);
-    store_row(c + 3 * ldc, c30, c31, 3, ep);
-    store_row(c + 4 * ldc, c40, c41, 4, ep);
-    store_row(c + 5 * ldc, c50, c51, 5, ep);
-    return;
-  }
-  alignas(32) float sum[MR * NR];
-  _mm256_store_ps(sum + 0 * NR, c00);
-  _mm256_store_ps(sum + 0 * NR + 8, c01);
-  _mm256_store_ps(sum + 1 * NR, c10);
-  _mm256_store_ps(sum + 1 * NR + 8, c11);
-  _mm256_store_ps(sum + 2 * NR, c20);
-  _mm256_store_ps(sum + 2 * NR + 8, c21);
-  _mm256_store_ps(sum + 3 * NR, c30);
-  _mm256_store_ps(sum + 3 * NR + 8, c31);
-  _mm256_store_ps(sum + 4 * NR, c40);
-  _mm256_store_ps(sum + 4 * NR + 8, c41);
-  _mm256_store_ps(sum + 5 * NR, c50);
-  _mm256_store_ps(sum + 5 * NR + 8, c51);
-  store_tile_scalar(sum, c, ldc, mr, nr, ep);
+  store_tile(c, ldc, mr, nr, ep, c00, c01, c10, c11, c20, c21, c30, c31, c40, c41, c50, c51);
 }
 
 #undef EGOPD_FMA_ROW
 #undef EGOPD_PREFETCH_B
+
+// ---- int8 (Precision::Int8) ------------------------------------------------------------------------------------
+// Pair panels (gemm_internal.h: I8Group) of int16 values within -127..127: vpmaddwd multiplies two k at once into
+// exact int32 sums and cannot saturate (vpmaddubsw's int16 pair sums could). Per pair two B loads and six A
+// broadcasts feed 12 vpmaddwd of 16 products each.
+
+namespace {
+
+// 8 lanes from p (the first n of them, the rest zero).
+inline __m256 load_lanes(const float* p, int n) {
+  if (n >= 8) return _mm256_loadu_ps(p);
+  alignas(32) static const int32_t ramp[8] = {0, 1, 2, 3, 4, 5, 6, 7};
+  return _mm256_maskload_ps(p, _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp)));
+}
+
+// One group of `len` float rows at src into its region at dst <= src. A chunk of 8 lanes writes slot row p over
+// float row <= p of the same lanes, after rows <= 2p + 1 of them were read (the other chunk's lanes are never
+// touched).
+void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_t group) {
+  const int chunks = (width + 7) / 8;
+  alignas(32) float mx[kMaxNR] = {}, scale[kMaxNR] = {}, inv[kMaxNR] = {};
+  alignas(32) int32_t sums[kMaxNR] = {};
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  for (int ch = 0; ch < chunks; ++ch) {
+    const int n = width - 8 * ch;
+    __m256 v = _mm256_setzero_ps();
+    for (int64_t k = 0; k < len; ++k) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, load_lanes(src + k * width + 8 * ch, n)));
+    _mm256_store_ps(mx + 8 * ch, v);
+  }
+  for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i]), inv[i] = i8_inverse(mx[i]);
+  int32_t* out = reinterpret_cast<int32_t*>(dst);
+  const __m256i lo = _mm256_set1_epi32(-127), hi = _mm256_set1_epi32(127), half = _mm256_set1_epi32(0xffff);
+  for (int ch = 0; ch < chunks; ++ch) {
+    const int n = width - 8 * ch;
+    const __m256 f = _mm256_load_ps(inv + 8 * ch);
+    __m256i sum = _mm256_setzero_si256();
+    for (int64_t p = 0; p < i8_slot_rows(len, 2); ++p) {
+      __m256i packed = _mm256_setzero_si256();
+      for (int t = 0; t < 2 && 2 * p + t < len; ++t) {
+        const __m256 x = load_lanes(src + (2 * p + t) * width + 8 * ch, n);
+        __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));  // nearest even, as nearbyint
+        q = _mm256_min_epi32(_mm256_max_epi32(q, lo), hi);
+        sum = _mm256_add_epi32(sum, q);
+        packed = _mm256_or_si256(packed, _mm256_slli_epi32(_mm256_and_si256(q, half), 16 * t));
+      }
+      if (n >= 8) {
+        _mm256_storeu_si256((__m256i*)(out + p * width + 8 * ch), packed);
+      } else {
+        alignas(32) int32_t tmp[8];
+        _mm256_store_si256((__m256i*)tmp, packed);
+        for (int j = 0; j < n; ++j) out[p * width + 8 * ch + j] = tmp[j];
+      }
+    }
+    _mm256_store_si256((__m256i*)(sums + 8 * ch), sum);
+  }
+  float* tail = dst + i8_slot_rows(group, 2) * width;
+  for (int i = 0; i < width; ++i) tail[i] = scale[i];
+  for (int i = 0; i < width; ++i) reinterpret_cast<int32_t*>(tail + width)[i] = sums[i];
+}
+
+}  // namespace
+
+void quantize_i8_pairs_avx2(float* panel, int width, int64_t kc, int64_t group) {
+  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
+    quantize_pairs(panel + k0 * width, panel + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
+}
+
+#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5)
+#define EGOPD_DECLARE(i) __m256i c##i##0 = _mm256_setzero_si256(), c##i##1 = _mm256_setzero_si256();
+#define EGOPD_DOT(i)                                                    \
+  {                                                                     \
+    const __m256i av = _mm256_set1_epi32(a[(i)]);                       \
+    c##i##0 = _mm256_add_epi32(c##i##0, _mm256_madd_epi16(av, b0));     \
+    c##i##1 = _mm256_add_epi32(c##i##1, _mm256_madd_epi16(av, b1));     \
+  }
+// Every path adds a group as sum = fma(float(int32 sum), s_row * s_col, sum): explicit, so that no path's
+// compiler contraction makes the results differ.
+#define EGOPD_SCALE(i)                                                                                   \
+  {                                                                                                      \
+    const __m256 sa = _mm256_broadcast_ss(pa.scale + (i));                                               \
+    v##i##0 = _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##0), _mm256_mul_ps(sa, sb0), v##i##0);            \
+    v##i##1 = _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##1), _mm256_mul_ps(sa, sb1), v##i##1);            \
+  }
+
+void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, const float* b_panel, float* c,
+                         int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  // Float sums of the groups (gemm_internal.h: I8Group) in v<i><j>, the int32 ones of a group in c<i><j>.
+  __m256 v00 = _mm256_setzero_ps(), v01 = v00, v10 = v00, v11 = v00, v20 = v00, v21 = v00, v30 = v00, v31 = v00,
+         v40 = v00, v41 = v00, v50 = v00, v51 = v00;
+  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
+    const I8Group pa(a_panel, MR, ep.i8_group, 2, g), pb(b_panel, NR, ep.i8_group, 2, g);
+    const int32_t* a = pa.slots;
+    const int32_t* b = pb.slots;
+    EGOPD_ROWS(EGOPD_DECLARE)
+    for (int64_t p = 0, pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2); p < pairs; ++p) {
+      const __m256i b0 = _mm256_loadu_si256((const __m256i*)b), b1 = _mm256_loadu_si256((const __m256i*)(b + 8));
+      _mm_prefetch(reinterpret_cast<const char*>(b + 8 * NR), _MM_HINT_T0);
+      EGOPD_ROWS(EGOPD_DOT)
+      a += MR;
+      b += NR;
+    }
+    const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
+    EGOPD_ROWS(EGOPD_SCALE)
+  }
+  store_tile(c, ldc, mr, nr, ep, v00, v01, v10, v11, v20, v21, v30, v31, v40, v41, v50, v51);
+}
+
+#undef EGOPD_SCALE
+#undef EGOPD_DOT
+#undef EGOPD_DECLARE
+#undef EGOPD_ROWS
 
 // ---- packing --------------------------------------------------------------------------------------------------
 
