@@ -6,6 +6,7 @@
 
 #include "core/kernel_reference.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -44,7 +45,33 @@ struct ConvCase {
   Act act = Act::None;
   bool accumulate = false;
   bool bf16 = false;  // Precision::Bf16: the reference multiplies the weights and inputs rounded to bfloat16
+  bool int8 = false;  // Precision::Int8: the float32 bound plus the quantisation bound of Int8Bound
 };
+
+// Precision::Int8 quantises each weight row and each input column (a pixel's receptive field) per K group with the
+// scale max|v| / 127 of that group, so each value moves by at most half a step, at most max|v| / 254 over the whole
+// row or column: |sum q_w q_x - sum w x| <= sum |w| X/254 + sum |x| W/254 + n W X/254^2 (W, X: the largest weight
+// of the row and input of the column, n terms). A wrong scale, rounding or offset breaks it by whole steps.
+struct Int8Bound {
+  double sum_w = 0, sum_x = 0, max_x = 0;
+  int64_t terms = 0;
+  void add(double w, double x) {
+    sum_w += std::fabs(w), sum_x += std::fabs(x), max_x = std::max(max_x, std::fabs(x)), ++terms;
+  }
+  double bound(double max_w) const {
+    return (sum_w * max_x + sum_x * max_w) / 254.0 + double(terms) * max_w * max_x / (254.0 * 254.0);
+  }
+};
+
+// Largest magnitude of each of `rows` weight rows of length k.
+std::vector<double> row_max(const std::vector<double>& w, int64_t rows, int64_t k) {
+  std::vector<double> m(size_t(rows), 0.0);
+  for (int64_t r = 0; r < rows; ++r)
+    for (int64_t i = 0; i < k; ++i) m[size_t(r)] = std::max(m[size_t(r)], std::fabs(w[size_t(r * k + i)]));
+  return m;
+}
+
+Precision precision_of(bool bf16, bool int8) { return int8 ? Precision::Int8 : bf16 ? Precision::Bf16 : Precision::Fp32; }
 
 double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
 
@@ -57,30 +84,35 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
-  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
+  set_precision(precision_of(c.bf16, c.int8));
   conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
   set_precision(Precision::Fp32);
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y.size()), tol(y.size());
+  const std::vector<double> w_max = row_max(wt.value, c.cout, K);
   for (int64_t f = 0; f < c.n; ++f)
     for (int64_t o = 0; o < c.cout; ++o)
       for (int64_t oy = 0; oy < oh; ++oy)
         for (int64_t ox = 0; ox < ow; ++ox) {
           double s = c.bias ? bias[size_t(o)] : 0.0, sa = std::fabs(s);
+          Int8Bound q8;
           for (int64_t ci = 0; ci < c.cin; ++ci)
             for (int64_t ky = 0; ky < c.k; ++ky)
               for (int64_t kx = 0; kx < c.k; ++kx) {
                 const int64_t iy = oy * c.stride - c.pad + ky, ix = ox * c.stride - c.pad + kx;
                 if (iy < 0 || iy >= c.h || ix < 0 || ix >= c.w) continue;
-                const double p = w_at(size_t(((o * c.cin + ci) * c.k + ky) * c.k + kx)) *
-                                 x_at(size_t(((f * c.cin + ci) * c.h + iy) * c.w + ix));
+                const double wv = w_at(size_t(((o * c.cin + ci) * c.k + ky) * c.k + kx)),
+                             xv = x_at(size_t(((f * c.cin + ci) * c.h + iy) * c.w + ix)), p = wv * xv;
                 s += p;
                 sa += std::fabs(p);
+                q8.add(wv, xv);
               }
           const size_t idx = size_t(((f * c.cout + o) * oh + oy) * ow + ox);
           double r = act_ref(c.act, s);
-          double t = (c.act == Act::None ? 1.0 : 1.2) * 2.0 * double(K + 3) * kU * sa + 8 * kU * std::fabs(r);
+          const double lip = c.act == Act::None ? 1.0 : 1.2;
+          double t = lip * 2.0 * double(K + 3) * kU * sa + 8 * kU * std::fabs(r);
+          if (c.int8) t += lip * q8.bound(w_max[size_t(o)]);
           if (c.accumulate) {
             r += y0[idx];
             t += 4 * kU * (std::fabs(y0[idx]) + std::fabs(r));
@@ -91,7 +123,8 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   return check(y, ref, tol,
                "conv " + std::to_string(c.k) + "x" + std::to_string(c.k) + "/" + std::to_string(c.stride) + " n" +
                    std::to_string(c.n) + " " + std::to_string(c.cin) + "->" + std::to_string(c.cout) + " " +
-                   std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt) + (c.bf16 ? " bf16" : ""));
+                   std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt) + (c.bf16 ? " bf16" : "") +
+                   (c.int8 ? " int8" : ""));
 }
 
 struct TemporalCase {
@@ -100,6 +133,7 @@ struct TemporalCase {
   Act act = Act::None;
   bool accumulate = false;
   bool bf16 = false;
+  bool int8 = false;
 };
 
 int run_temporal(const TemporalCase& c, uint32_t seed) {
@@ -109,30 +143,35 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
   const std::vector<float> y0 = y;
-  set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
+  set_precision(precision_of(c.bf16, c.int8));
   conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
                  c.accumulate);
   set_precision(Precision::Fp32);
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y.size()), tol(y.size());
+  const std::vector<double> w_max = row_max(wt.value, c.cout, c.cin * 3);
   for (int64_t bi = 0; bi < c.b; ++bi)
     for (int64_t t = 0; t < c.f; ++t)
       for (int64_t o = 0; o < c.cout; ++o)
         for (int64_t p = 0; p < c.hw; ++p) {
           double s = bias[size_t(o)], sa = std::fabs(s);
+          Int8Bound q8;
           for (int64_t ci = 0; ci < c.cin; ++ci)
             for (int64_t k = 0; k < 3; ++k) {
               const int64_t ts = t + k - 1;
               if (ts < 0 || ts >= c.f) continue;
-              const double v =
-                  w_at(size_t((o * c.cin + ci) * 3 + k)) * x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p));
+              const double wv = w_at(size_t((o * c.cin + ci) * 3 + k)),
+                           xv = x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)), v = wv * xv;
               s += v;
               sa += std::fabs(v);
+              q8.add(wv, xv);
             }
           const size_t idx = size_t(((bi * c.f + t) * c.cout + o) * c.hw + p);
           double r = act_ref(c.act, s);
-          double tl = (c.act == Act::None ? 1.0 : 1.2) * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
+          const double lip = c.act == Act::None ? 1.0 : 1.2;
+          double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
+          if (c.int8) tl += lip * q8.bound(w_max[size_t(o)]);
           if (c.accumulate) {
             r += y0[idx];
             tl += 4 * kU * (std::fabs(y0[idx]) + std::fabs(r));
@@ -221,6 +260,39 @@ TEST_P(ConvTest, Bf16Compute) {
       EXPECT_EQ(run_temporal(t, seed++), 0);
     }
   }
+}
+
+// Precision::Int8 (3x3 convolutions then stay direct): the same cases within the quantisation bound; and the
+// result must differ from float32 (the operands really were quantised).
+TEST_P(ConvTest, Int8Compute) {
+  uint32_t seed = 180;
+  for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8}) {
+    const ConvCase cases[] = {{2, 5, 7, 3, 5, 1, 1, 0, dt},          {1, 3, 17, 7, 9, 3, 1, 1, dt},
+                              {2, 50, 13, 6, 6, 3, 1, 1, dt, true, Act::SiLU}, {1, 4, 4, 1, 1, 3, 1, 1, dt},
+                              {3, 7, 9, 8, 8, 3, 2, 1, dt, true, Act::None, true}, {1, 3, 10, 28, 28, 14, 14, 0, dt},
+                              {1, 70, 9, 5, 6, 3, 1, 1, dt}};  // K = 630: two quantisation groups
+    for (ConvCase c : cases) {
+      c.int8 = true;
+      EXPECT_EQ(run_conv(c, seed++), 0);
+    }
+    for (int64_t f : {1, 3}) {
+      TemporalCase t{2, f, 9, 13, 37, dt};
+      t.int8 = true;
+      EXPECT_EQ(run_temporal(t, seed++), 0);
+    }
+    TemporalCase wide{1, 4, 200, 8, 20, dt};  // K = 600
+    wide.int8 = true;
+    EXPECT_EQ(run_temporal(wide, seed++), 0);
+  }
+  std::mt19937 rng(5);
+  const std::vector<float> x = random_vec(size_t(2 * 16 * 8 * 8), rng), w = random_vec(size_t(8 * 16 * 9), rng);
+  const Conv2dGeom g{16, 8, 3, 3, 1, 1, 1, 1};
+  std::vector<float> y32(size_t(2 * 8 * 8 * 8)), y8(y32.size());
+  conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y32.data());
+  set_precision(Precision::Int8);
+  conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y8.data());
+  set_precision(Precision::Fp32);
+  EXPECT_NE(y8, y32);
 }
 
 TEST_P(ConvTest, Temporal) {
