@@ -229,50 +229,58 @@ void quantize_i8_pairs_avx2(float* panel, int width, int64_t kc, int64_t group) 
     quantize_pairs(panel + k0 * width, panel + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
 }
 
-#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5)
+// Three rows of the tile at a time (rows r0 + 0..2): 6 accumulators, two B vectors, the A broadcast and a product
+// stay in the 16 registers (all six rows at once made GCC spill half the accumulators); B is re-read from L1.
+#define EGOPD_ROWS3(X) X(0) X(1) X(2)
 #define EGOPD_DECLARE(i) __m256i c##i##0 = _mm256_setzero_si256(), c##i##1 = _mm256_setzero_si256();
 #define EGOPD_DOT(i)                                                    \
   {                                                                     \
-    const __m256i av = _mm256_set1_epi32(a[(i)]);                       \
+    const __m256i av = _mm256_set1_epi32(a[r0 + (i)]);                  \
     c##i##0 = _mm256_add_epi32(c##i##0, _mm256_madd_epi16(av, b0));     \
     c##i##1 = _mm256_add_epi32(c##i##1, _mm256_madd_epi16(av, b1));     \
   }
 // Every path adds a group as sum = fma(float(int32 sum), s_row * s_col, sum): explicit, so that no path's
 // compiler contraction makes the results differ.
-#define EGOPD_SCALE(i)                                                                                   \
-  {                                                                                                      \
-    const __m256 sa = _mm256_broadcast_ss(pa.scale + (i));                                               \
-    v##i##0 = _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##0), _mm256_mul_ps(sa, sb0), v##i##0);            \
-    v##i##1 = _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##1), _mm256_mul_ps(sa, sb1), v##i##1);            \
+#define EGOPD_SCALE(i)                                                                                        \
+  {                                                                                                           \
+    float* row = sum + (r0 + (i)) * NR;                                                                       \
+    const __m256 sa = _mm256_broadcast_ss(pa.scale + r0 + (i));                                               \
+    _mm256_store_ps(row, _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##0), _mm256_mul_ps(sa, sb0), _mm256_load_ps(row))); \
+    _mm256_store_ps(row + 8,                                                                                  \
+                    _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##1), _mm256_mul_ps(sa, sb1), _mm256_load_ps(row + 8))); \
   }
 
 void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, const float* b_panel, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
-  // Float sums of the groups (gemm_internal.h: I8Group) in v<i><j>, the int32 ones of a group in c<i><j>.
-  __m256 v00 = _mm256_setzero_ps(), v01 = v00, v10 = v00, v11 = v00, v20 = v00, v21 = v00, v30 = v00, v31 = v00,
-         v40 = v00, v41 = v00, v50 = v00, v51 = v00;
+  alignas(32) float sum[MR * NR] = {};  // float sums of the groups (gemm_internal.h: I8Group)
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
     const I8Group pa(a_panel, MR, ep.i8_group, 2, g), pb(b_panel, NR, ep.i8_group, 2, g);
-    const int32_t* a = pa.slots;
-    const int32_t* b = pb.slots;
-    EGOPD_ROWS(EGOPD_DECLARE)
-    for (int64_t p = 0, pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2); p < pairs; ++p) {
-      const __m256i b0 = _mm256_loadu_si256((const __m256i*)b), b1 = _mm256_loadu_si256((const __m256i*)(b + 8));
-      _mm_prefetch(reinterpret_cast<const char*>(b + 8 * NR), _MM_HINT_T0);
-      EGOPD_ROWS(EGOPD_DOT)
-      a += MR;
-      b += NR;
-    }
     const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
-    EGOPD_ROWS(EGOPD_SCALE)
+    const int64_t pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2);
+    for (int r0 = 0; r0 < mr; r0 += 3) {
+      const int32_t* a = pa.slots;
+      const int32_t* b = pb.slots;
+      EGOPD_ROWS3(EGOPD_DECLARE)
+#pragma GCC unroll 4
+      for (int64_t p = 0; p < pairs; ++p) {
+        const __m256i b0 = _mm256_loadu_si256((const __m256i*)b), b1 = _mm256_loadu_si256((const __m256i*)(b + 8));
+        _mm_prefetch(reinterpret_cast<const char*>(b + 8 * NR), _MM_HINT_T0);
+        EGOPD_ROWS3(EGOPD_DOT)
+        a += MR;
+        b += NR;
+      }
+      EGOPD_ROWS3(EGOPD_SCALE)
+    }
   }
-  store_tile(c, ldc, mr, nr, ep, v00, v01, v10, v11, v20, v21, v30, v31, v40, v41, v50, v51);
+  const auto row = [&](int i, int half) { return _mm256_load_ps(sum + i * NR + 8 * half); };
+  store_tile(c, ldc, mr, nr, ep, row(0, 0), row(0, 1), row(1, 0), row(1, 1), row(2, 0), row(2, 1), row(3, 0),
+             row(3, 1), row(4, 0), row(4, 1), row(5, 0), row(5, 1));
 }
 
 #undef EGOPD_SCALE
 #undef EGOPD_DOT
 #undef EGOPD_DECLARE
-#undef EGOPD_ROWS
+#undef EGOPD_ROWS3
 
 // ---- packing --------------------------------------------------------------------------------------------------
 
