@@ -64,7 +64,7 @@ typedef struct egopd_load_options {
   size_t struct_size;        /* sizeof(egopd_load_options); set by egopd_load_options_init */
   int threads;               /* worker threads; 0: EGOPD_THREADS, else the physical cores. Process-wide (OpenMP) */
   int low_mem;               /* 1: load one component at a time and release it after use (same results) */
-  const char* precision;     /* NULL or "fp32" (the only compute precision so far; others are an error) */
+  const char* precision;     /* arithmetic of the model's calls: NULL or "fp32", "bf16" or "int8" (egopd --help) */
   int64_t size;              /* frame size S the model is prepared for (a multiple of 64); default 256 */
   const char* template_path; /* hand template JSON; NULL: the shipped (synthetic) template */
   egopd_log_fn log;          /* NULL: quiet */

@@ -25,8 +25,8 @@ cmake --build build-asan -j"$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build-asan --output-on-failure -j"$jobs"
 
-echo "== fuzzing: every parser of user files, 30 s each (libFuzzer, ASan + UBSan) =="
-./scripts/fuzz.sh 30
+echo "== fuzzing: every parser of user files, 20 s each (libFuzzer, ASan + UBSan) =="
+./scripts/fuzz.sh 20
 
 echo "== Slurm: a job array on a one-node local cluster =="
 if [ "$(id -u)" -eq 0 ]; then

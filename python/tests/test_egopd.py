@@ -152,7 +152,7 @@ class ModuleTest(unittest.TestCase):
                 self.assertNotIn("\n", msg)
                 if needle:
                     self.assertIn(needle, msg)
-        with self.assertRaisesRegex(egopd.ArgumentError, "not supported yet"):
+        with self.assertRaisesRegex(egopd.ArgumentError, "expected fp32, bf16 or int8"):
             egopd.Model(precision="fp16")
         with self.assertRaisesRegex(egopd.Error, "/nonexistent/model"):
             egopd.Model("/nonexistent/model")

@@ -88,12 +88,18 @@ egopd_predict_options read_predict_options(const egopd_predict_options* o) {
   return read_struct(o, egopd_predict_options_init, "predict options", "egopd_predict_options_init");
 }
 
+Precision load_precision(const egopd_load_options& o) {
+  const std::string name = str(o.precision);
+  Precision p = Precision::Fp32;
+  if (!name.empty() && !parse_precision(name.c_str(), &p))
+    throw ArgumentError("precision '" + name + "': expected fp32, bf16 or int8");
+  return p;
+}
+
 PredictOptions load_predict_options(const char* model_dir, const egopd_load_options& o) {
   if (o.threads < 0 || o.threads > 1024)
     throw ArgumentError("--threads must be between 1 and 1024 (or 0: the default), got " + std::to_string(o.threads));
-  const std::string precision = str(o.precision);
-  if (!precision.empty() && precision != "fp32")
-    throw ArgumentError("precision '" + precision + "' is not supported yet (only fp32)");
+  load_precision(o);
   PredictOptions po;
   po.model_dir = str(model_dir);
   po.size = bounded(o.size, 64, 4096, "--size");

@@ -25,6 +25,7 @@
 struct egopd_model {
   egopd::PredictOptions load;  // model_dir as given ("": the built-in model), size, low_mem, template_path
   int threads = 0;
+  egopd::Precision precision = egopd::Precision::Fp32;  // set for each of its calls, like threads
   egopd_log_fn log = nullptr;
   void* log_user = nullptr;
   std::unique_ptr<egopd::PredictModel> model;
@@ -73,15 +74,16 @@ egopd_status guarded(Body&& body) {
 }
 
 // A computing call: refused inside a callback of another one on this thread, then the process-wide lock and the
-// model's thread count.
+// model's thread count and compute precision.
 class ComputeScope {
  public:
-  explicit ComputeScope(int threads) {
+  explicit ComputeScope(const egopd_model& m) {
     if (t_in_call) throw ArgumentError("egopd_predict, egopd_counterfactual and egopd_model_load cannot be called from "
                                        "inside a progress or log callback");
     lock_ = std::unique_lock<std::mutex>(g_compute);
     t_in_call = true;
-    set_num_threads(threads);
+    set_num_threads(m.threads);
+    set_precision(m.precision);
   }
   ~ComputeScope() { t_in_call = false; }
   ComputeScope(const ComputeScope&) = delete;
@@ -169,8 +171,9 @@ egopd_status egopd_model_load(const char* model_dir, const egopd_load_options* o
     auto m = std::make_unique<egopd_model>();
     m->load = load_predict_options(model_dir, o);
     m->threads = o.threads;
+    m->precision = load_precision(o);
     m->log = o.log, m->log_user = o.log_user;
-    ComputeScope scope(m->threads);
+    ComputeScope scope(*m);
     m->model = std::make_unique<PredictModel>(m->load, model_hooks(*m));
     m->unreported_load_seconds = m->model->load_seconds();
     *model = m.release();
@@ -192,7 +195,7 @@ egopd_status egopd_predict(egopd_model* model, const egopd_predict_options* opti
     const PredictOptions po = call_predict_options(m.load, o);
     const ClipSource src = call_clip_source(o, po, model_hooks(m));
     const RunHooks hooks = call_hooks(m, o);
-    ComputeScope scope(m.threads);
+    ComputeScope scope(m);
     const PredictModel& pm = model_for(m, po.size);
     auto r = std::make_unique<egopd_result>();
     r->c = predict_clip(pm, po, src, po.out_dir, hooks);
@@ -213,7 +216,7 @@ egopd_status egopd_counterfactual(egopd_model* model, const egopd_predict_option
     if (po.prompt) throw ArgumentError("counterfactual varies prompt fields: give --meta (or nothing), not --prompt");
     const ClipSource src = call_clip_source(o, po, model_hooks(m));
     const RunHooks hooks = call_hooks(m, o);
-    ComputeScope scope(m.threads);
+    ComputeScope scope(m);
     const PredictModel& pm = model_for(m, po.size);
     std::vector<ClipOutcome> outcomes = counterfactual_clip(pm, po, src, vary, po.out_dir, hooks);
     std::vector<std::unique_ptr<egopd_result>> out;
