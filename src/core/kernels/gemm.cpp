@@ -63,6 +63,12 @@ namespace {
 
 constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
 constexpr int64_t kInt8GroupsPerPass = 4;  // int8 B micro-panel of 4 x 512 x 32 bytes: 64 KiB, in L2
+// Bytes of an int8 B block (16 MiB: the U-Net ran ~5% faster than with 2 MiB on the AMD EPYC "Turin-like" CPU);
+// EGOPD_GEMM_I8_BLOCK_MB overrides it for tuning experiments.
+const int64_t kInt8BBlockBytes = [] {
+  const char* e = std::getenv("EGOPD_GEMM_I8_BLOCK_MB");
+  return int64_t(e ? std::atoi(e) : 16) << 20;
+}();
 
 thread_local AlignedScratch tl_pack;  // the calling thread's; team threads get slices (no allocation inside a region)
 
@@ -96,7 +102,7 @@ void run_gemm(const GemmJob& job) {
   const GemmPath& path = gemm_path();
   const int MR = path.mr, NR = path.nr;
   const bool int8 = precision() == Precision::Int8 && K > 0;
-  const int64_t kMcMax = path.mc, kNcMax = path.nc;
+  const int64_t kMcMax = path.mc;
   // Int8: K in balanced quantisation groups of at most kInt8Block (gemm.h), a K pass of up to kInt8GroupsPerPass
   // whole groups (the micro-kernel sums the groups of a pass in registers, so C is read and written once per pass).
   const int64_t i8_group = int8 ? ceil_div(K, ceil_div(K, kInt8Block)) : 0;
@@ -111,6 +117,13 @@ void run_gemm(const GemmJob& job) {
   // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
   const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
+  // Int8: B micro-panels are packed in float32 into a buffer of the thread's and quantised into compact slots (a
+  // quarter of the bytes), and a B block spans about kInt8BBlockBytes: several times the columns of a float32
+  // block, so A (packed and quantised once per column block and thread) is repacked that much less often.
+  const int64_t b_panel_floats =
+      int8 ? ceil_div(kc_blk, i8_group) * i8_region(NR, i8_group, path.i8_per) : kc_slot * NR;
+  const int64_t kNcMax =
+      int8 ? std::max<int64_t>(path.nc, kInt8BBlockBytes / (b_panel_floats * 4) * NR) : path.nc;
 
   // Bf16: every packed panel is rounded (emulated) or turned into bfloat16 pairs (native) right after packing, so A
   // is always packed.
@@ -118,7 +131,7 @@ void run_gemm(const GemmJob& job) {
     if (bf16_pairs) path.to_bf16_pairs(panel, width, kc);
     else round_to_bf16(panel, kc * width);
   };
-  // Int8: every packed panel is quantised in place (see GemmPath::quantize_a_i8), so A is always packed too.
+  // Int8: every packed panel is quantised (see GemmPath::quantize_a_i8), so A is always packed too.
   const MicroKernel uk = int8 ? path.micro_i8 : bf16_pairs ? path.micro_bf16 : path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
   const int64_t npanels = job.segments * panels_per_seg;
@@ -140,11 +153,12 @@ void run_gemm(const GemmJob& job) {
   // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
   // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
   // with the size of the column block).
-  const int64_t b_block = kc_slot * (jc_panels + (split_m ? 0 : threads)) * NR;  // floats of one B block
+  const int64_t b_block = b_panel_floats * (jc_panels + (split_m ? 0 : threads));  // floats of one B block
+  const int64_t b_float_panel = int8 ? kc_slot * NR : 0;  // int8: one float32 B micro-panel per thread
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
   const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_slot + 15) / 16 * 16;  // floats of one thread's A block
   const int64_t b_floats = b_block * (double_buffer ? 2 : 1);
-  float* const scratch = tl_pack.get(size_t(b_floats + int64_t(threads) * a_slice) + 16);
+  float* const scratch = tl_pack.get(size_t(b_floats + int64_t(threads) * (a_slice + b_float_panel)) + 16);
   float* const b_shared = scratch;
   const Epilogue& ep = job.ep;
   // Row chunks handed out dynamically (a thread slowed down by anything else on the machine takes fewer): up to
@@ -164,6 +178,7 @@ void run_gemm(const GemmJob& job) {
   {
     const int nth = omp_get_num_threads(), tid = omp_get_thread_num();
     float* const a_pack = direct_a ? nullptr : scratch + b_floats + tid * a_slice;
+    float* const b_float = scratch + b_floats + threads * a_slice + tid * b_float_panel;
     int64_t iter = 0;
     for (int64_t jc = 0; jc < njc; ++jc) {
       const int64_t p_begin = jc * jc_panels, p_end = std::min(npanels, p_begin + jc_panels);
@@ -182,10 +197,10 @@ void run_gemm(const GemmJob& job) {
         for (int64_t p = pk_lo; p < pk_hi; ++p) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-          float* panel = b_pack + panel_slot(p) * kc_slot * NR;
-          job.b->pack(path, seg, k0, kc, n0, nr, panel);
+          float* panel = b_pack + panel_slot(p) * b_panel_floats;
+          job.b->pack(path, seg, k0, kc, n0, nr, int8 ? b_float : panel);
           if (bf16) to_bf16(panel, NR, kc);
-          if (int8) path.quantize_b_i8(panel, NR, kc, i8_group);
+          if (int8) path.quantize_b_i8(b_float, panel, NR, kc, i8_group);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -207,12 +222,12 @@ void run_gemm(const GemmJob& job) {
               float* panel = a_pack + ir * kc_slot;
               job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, panel);
               if (bf16) to_bf16(panel, MR, kc);
-              if (int8) path.quantize_a_i8(panel, MR, kc, i8_group);
+              if (int8) path.quantize_a_i8(panel, panel, MR, kc, i8_group);
             }
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
-            const float* bp = b_pack + panel_slot(p) * kc_slot * NR;
+            const float* bp = b_pack + panel_slot(p) * b_panel_floats;
             float* cp = job.c + seg * job.c_seg_stride + n0;
             te.bias_col = bias_col ? bias_col + n0 : nullptr;
             for (int64_t ir = 0; ir < mc; ir += MR) {

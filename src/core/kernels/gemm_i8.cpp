@@ -24,9 +24,10 @@ inline int32_t quantize(float x, float inv) {
   return int32_t(std::clamp(std::nearbyint(x * inv), -127.0f, 127.0f));
 }
 
-// One group: `len` float rows at src into the region at dst <= src. Slot (p, i) is written after the floats it
-// packs were read; those of later slots sit at rows >= per * p of src, past every slot written so far. The scales
-// and sums go last, at slot row ceil(group / per), once every float of the group has been read.
+// One group: `len` float rows at src into the region at dst (<= src in place, else apart). In place, slot (p, i)
+// is written after the floats it packs were read; those of later slots sit at rows >= per * p of src, past every
+// slot written so far. The scales and sums go last, at slot row ceil(group / per), once every float of the group
+// has been read.
 template <int per, typename Store>
 void quantize_group(const float* src, float* dst, int width, int64_t len, int64_t group, Store store) {
   float scale[kMaxNR], inv[kMaxNR];
@@ -48,24 +49,24 @@ void quantize_group(const float* src, float* dst, int width, int64_t len, int64_
 }
 
 template <int per, typename Store>
-void quantize_groups(float* panel, int width, int64_t kc, int64_t group, Store store) {
+void quantize_groups(const float* src, float* dst, int width, int64_t kc, int64_t group, Store store) {
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_group<per>(panel + k0 * width, panel + g * i8_region(width, group, per), width,
+    quantize_group<per>(src + k0 * width, dst + g * i8_region(width, group, per), width,
                         std::min(group, kc - k0), group, store);
 }
 
 }  // namespace
 
-void quantize_i8_quads(float* panel, int width, int64_t kc, int64_t group, bool unsigned_bytes) {
-  quantize_groups<4>(panel, width, kc, group, [unsigned_bytes](float* slot, const int32_t* q) {
+void quantize_i8_quads(const float* src, float* dst, int width, int64_t kc, int64_t group, bool unsigned_bytes) {
+  quantize_groups<4>(src, dst, width, kc, group, [unsigned_bytes](float* slot, const int32_t* q) {
     uint8_t bytes[4];
     for (int t = 0; t < 4; ++t) bytes[t] = uint8_t(q[t] + (unsigned_bytes ? 128 : 0));
     std::memcpy(slot, bytes, 4);
   });
 }
 
-void quantize_i8_pairs(float* panel, int width, int64_t kc, int64_t group) {
-  quantize_groups<2>(panel, width, kc, group, [](float* slot, const int32_t* q) {
+void quantize_i8_pairs(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_groups<2>(src, dst, width, kc, group, [](float* slot, const int32_t* q) {
     const int16_t v[2] = {int16_t(q[0]), int16_t(q[1])};
     std::memcpy(slot, v, 4);
   });

@@ -69,11 +69,13 @@ struct GemmPath {
   // (x(kc, i) = 0 for odd kc). micro_bf16 multiplies such A and B panels (kc is still the float32 depth).
   void (*to_bf16_pairs)(float* panel, int width, int64_t kc) = nullptr;
   MicroKernel micro_bf16 = nullptr;
-  // Precision::Int8: quantise a packed float32 panel of `width` (MR or NR) lanes and kc rows in place, `group`
-  // rows at a time (see I8Group), A's and B's in the format micro_i8 multiplies (group: TileEpilogue::i8_group);
-  // i8_kernel says which instructions it uses.
-  void (*quantize_a_i8)(float* panel, int width, int64_t kc, int64_t group) = nullptr;
-  void (*quantize_b_i8)(float* panel, int width, int64_t kc, int64_t group) = nullptr;
+  // Precision::Int8: quantise a packed float32 panel `src` of `width` (MR or NR) lanes and kc rows into `dst`
+  // (src itself, in place, or a buffer apart), `group` rows at a time (see I8Group), A's and B's in the format
+  // micro_i8 multiplies (group: TileEpilogue::i8_group), i8_per values a 32-bit slot; i8_kernel says which
+  // instructions it uses.
+  void (*quantize_a_i8)(const float* src, float* dst, int width, int64_t kc, int64_t group) = nullptr;
+  void (*quantize_b_i8)(const float* src, float* dst, int width, int64_t kc, int64_t group) = nullptr;
+  int i8_per = 4;
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
@@ -96,7 +98,8 @@ void microkernel_avx512_bf16(int64_t kc, const float* a, int64_t a_rs, int64_t a
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void to_bf16_pairs_avx512(float* panel, int width, int64_t kc);
 // ---- Int8 panels (Precision::Int8) ----
-// A packed float32 panel of `width` lanes and kc rows is quantised in place in groups of `group` rows (gemm.h's K
+// A packed float32 panel of `width` lanes and kc rows is quantised (in place, or into a buffer apart) in groups of
+// `group` rows (gemm.h's K
 // blocks; the last group of K may be shorter). Group g becomes a region of i8_region(width, group, per) floats at
 // float g * i8_region(...): the lanes' int8 values, `per` (4: quads, 2: pairs) k at a time in one 32-bit slot per
 // lane, ceil(len/per) rows of `width` slots (values past the group's length are 0); then, at slot row
@@ -121,16 +124,16 @@ struct I8Group {
 inline float i8_scale(float m) { return m > 1e-30f ? m / 127.0f : 0.0f; }
 inline float i8_inverse(float m) { return m > 1e-30f ? 127.0f / m : 0.0f; }
 // Scalar quantisers (any path) and the exact scalar micro-kernel of quad panels (signed bytes).
-void quantize_i8_quads(float* panel, int width, int64_t kc, int64_t group, bool unsigned_bytes);
-void quantize_i8_pairs(float* panel, int width, int64_t kc, int64_t group);
+void quantize_i8_quads(const float* src, float* dst, int width, int64_t kc, int64_t group, bool unsigned_bytes);
+void quantize_i8_pairs(const float* src, float* dst, int width, int64_t kc, int64_t group);
 template <int MR, int NR>
 void microkernel_i8_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
-void quantize_i8_a_avx512_vnni(float* panel, int width, int64_t kc, int64_t group);
-void quantize_i8_b_avx512_vnni(float* panel, int width, int64_t kc, int64_t group);
+void quantize_i8_a_avx512_vnni(const float* src, float* dst, int width, int64_t kc, int64_t group);
+void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t kc, int64_t group);
 void microkernel_avx512_vnni(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
-void quantize_i8_pairs_avx2(float* panel, int width, int64_t kc, int64_t group);
+void quantize_i8_pairs_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
 void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 

@@ -44,9 +44,10 @@ GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
 // Int8 by the exact scalar micro-kernel (signed quads), for paths without an int8 dot product.
 template <int MR, int NR>
 GemmPath with_emulated_int8(GemmPath p) {
-  p.quantize_a_i8 = p.quantize_b_i8 = [](float* panel, int width, int64_t kc, int64_t group) {
-    quantize_i8_quads(panel, width, kc, group, false);
+  p.quantize_a_i8 = p.quantize_b_i8 = [](const float* src, float* dst, int width, int64_t kc, int64_t group) {
+    quantize_i8_quads(src, dst, width, kc, group, false);
   };
+  p.i8_per = 4;
   p.micro_i8 = microkernel_i8_portable<MR, NR>;
   p.i8_kernel = "emulated";
   return p;
@@ -66,6 +67,7 @@ const GemmPath& gemm_path(KernelPath which) {
                                 pack_im2col_shift_avx2, pack_a_temporal6_avx2},
                                false);
     p.quantize_a_i8 = p.quantize_b_i8 = quantize_i8_pairs_avx2;
+    p.i8_per = 2;
     p.micro_i8 = microkernel_avx2_i8;
     p.i8_kernel = "vpmaddwd (AVX2)";
     return p;

@@ -177,9 +177,9 @@ inline __m256 load_lanes(const float* p, int n) {
   return _mm256_maskload_ps(p, _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp)));
 }
 
-// One group of `len` float rows at src into its region at dst <= src. A chunk of 8 lanes writes slot row p over
-// float row <= p of the same lanes, after rows <= 2p + 1 of them were read (the other chunk's lanes are never
-// touched).
+// One group of `len` float rows at src into its region at dst (<= src in place, else apart). In place, a chunk of
+// 8 lanes writes slot row p over float row <= p of the same lanes, after rows <= 2p + 1 of them were read (the
+// other chunk's lanes are never touched).
 void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_t group) {
   const int chunks = (width + 7) / 8;
   alignas(32) float mx[kMaxNR] = {}, scale[kMaxNR] = {}, inv[kMaxNR] = {};
@@ -224,9 +224,9 @@ void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_
 
 }  // namespace
 
-void quantize_i8_pairs_avx2(float* panel, int width, int64_t kc, int64_t group) {
+void quantize_i8_pairs_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_pairs(panel + k0 * width, panel + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
+    quantize_pairs(src + k0 * width, dst + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
 }
 
 // Three rows of the tile at a time (rows r0 + 0..2): 6 accumulators, two B vectors, the A broadcast and a product

@@ -205,7 +205,7 @@ __attribute__((target("avx512bf16"))) void to_bf16_pairs_avx512(float* panel, in
 
 namespace {
 
-// One group of `len` float rows at src into its region at dst <= src (quads; the order of quantize_i8_quads per 16
+// One group of `len` float rows at src into its region at dst (<= src in place, else apart) (quads; the order of quantize_i8_quads per 16
 // lanes, so the same in-place argument holds).
 template <bool kUnsigned>
 __attribute__((always_inline)) inline void quantize_quads(const float* src, float* dst, int width, int64_t len,
@@ -246,19 +246,19 @@ __attribute__((always_inline)) inline void quantize_quads(const float* src, floa
 }
 
 template <bool kUnsigned>
-void quantize_quad_groups(float* panel, int width, int64_t kc, int64_t group) {
+void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, int64_t group) {
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_quads<kUnsigned>(panel + k0 * width, panel + g * i8_region(width, group, 4), width,
+    quantize_quads<kUnsigned>(src + k0 * width, dst + g * i8_region(width, group, 4), width,
                               std::min(group, kc - k0), group);
 }
 
 }  // namespace
 
-void quantize_i8_a_avx512_vnni(float* panel, int width, int64_t kc, int64_t group) {
-  quantize_quad_groups<true>(panel, width, kc, group);
+void quantize_i8_a_avx512_vnni(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<true>(src, dst, width, kc, group);
 }
-void quantize_i8_b_avx512_vnni(float* panel, int width, int64_t kc, int64_t group) {
-  quantize_quad_groups<false>(panel, width, kc, group);
+void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<false>(src, dst, width, kc, group);
 }
 
 #define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7) X(8) X(9) X(10) X(11)
