@@ -179,10 +179,13 @@ class ModuleTest(unittest.TestCase):
                 os.kill(os.getpid(), signal.SIGINT)
 
         out = os.path.join(WORK, "interrupted")
+        # Python's handler, or SIG_IGN when the tests were started in the background (nohup, `&` without job
+        # control): whichever it was, the call puts it back.
+        before = signal.getsignal(signal.SIGINT)
         with self.assertRaises(KeyboardInterrupt):
             self.model.predict(num_frames=2, seed=1, progress=interrupt, out=out)
         self.assertFalse(os.path.exists(out))
-        self.assertIs(signal.getsignal(signal.SIGINT), signal.default_int_handler)
+        self.assertIs(signal.getsignal(signal.SIGINT), before)
         self.assertEqual(self.model.predict(num_frames=2, seed=1).taxels.shape, (2, 162))
 
     def test_version(self):
