@@ -295,8 +295,9 @@ class _Call:
 class Model:
     """A loaded model; any number of predictions run on it. path None: the built-in tiny synthetic model.
     threads None: EGOPD_THREADS, else the physical cores (process-wide). size: the frame size the model is prepared
-    for (another size in a call reloads it). log: a callable receiving the run's log lines (what `egopd predict`
-    prints on stderr); None: quiet."""
+    for (another size in a call reloads it). precision: "fp32", "bf16" or "int8", the arithmetic of the linear
+    layers and convolutions in this model's calls (README, `--precision`). log: a callable receiving the run's log
+    lines (what `egopd predict` prints on stderr); None: quiet."""
 
     def __init__(self, path=None, threads=None, low_mem=False, size=256, template=None, precision="fp32", log=None):
         o = _LoadOptions()
