@@ -112,8 +112,6 @@ __attribute__((always_inline)) inline void k_loop(int64_t kc, const float* a, in
 
 #undef EGOPD_STORE
 #undef EGOPD_FMA
-#undef EGOPD_DECLARE
-#undef EGOPD_ROWS
 
 }  // namespace
 
@@ -139,17 +137,28 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
 
 // ---- bfloat16 (Precision::Bf16 on CPUs with AVX512-BF16) --------------------------------------------------------
 // vdpbf16ps: lane j += a.lo * b.lo + a.hi * b.hi, the products exact in float32. Panels hold k pairs (see
-// GemmPath::to_bf16_pairs): per pair two B loads and twelve A broadcasts feed 24 instructions of 32 products each.
+// GemmPath::to_bf16_pairs), 32 products per instruction.
 
-#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7) X(8) X(9) X(10) X(11)
-#define EGOPD_DECLARE(i) __m512 c##i##0 = _mm512_setzero_ps(), c##i##1 = _mm512_setzero_ps();
-// Inline assembly, as vpdpbusd below: the intrinsic makes GCC 12 copy and spill the accumulators.
-#define EGOPD_DOT(i)                                                                 \
-  {                                                                                  \
-    const __m512i av = _mm512_set1_epi32(int(a[(i)]));                               \
-    asm("vdpbf16ps %[b], %[a], %[c]" : [c] "+v"(c##i##0) : [a] "v"(av), [b] "v"(b0)); \
-    asm("vdpbf16ps %[b], %[a], %[c]" : [c] "+v"(c##i##1) : [a] "v"(av), [b] "v"(b1)); \
+// EGOPD_SLOT_LOOP(n): n rows of the 32-bit slots of the A and B panels at a and b (bf16 pairs, int8 quads); per
+// row two B loads and twelve A broadcasts feed 24 instructions EGOPD_DOT_INSN (defined at each use) into
+// c<i>0, c<i>1. The instructions are inline assembly: with their intrinsics GCC 12 copies each accumulator before
+// the instruction (its destination is also its input) and spills the tile to the stack (vpdpbusd: 3.6x slower).
+#define EGOPD_DOT(i)                                                                     \
+  {                                                                                      \
+    const __m512i av = _mm512_set1_epi32(int(a[(i)]));                                   \
+    asm(EGOPD_DOT_INSN " %[b], %[a], %[c]" : [c] "+v"(c##i##0) : [a] "v"(av), [b] "v"(b0)); \
+    asm(EGOPD_DOT_INSN " %[b], %[a], %[c]" : [c] "+v"(c##i##1) : [a] "v"(av), [b] "v"(b1)); \
   }
+#define EGOPD_SLOT_LOOP(n)                                                               \
+  for (int64_t p = 0, rows_ = (n); p < rows_; ++p) {                                     \
+    const __m512i b0 = _mm512_loadu_si512(b), b1 = _mm512_loadu_si512(b + 16);          \
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR), _MM_HINT_T0);       \
+    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR + 16), _MM_HINT_T0);  \
+    EGOPD_ROWS(EGOPD_DOT)                                                                \
+    a += MR;                                                                             \
+    b += NR;                                                                             \
+  }
+#define EGOPD_DOT_INSN "vdpbf16ps"
 #define EGOPD_STORE(i)                   \
   _mm512_store_ps(sum + (i) * NR, c##i##0); \
   _mm512_store_ps(sum + (i) * NR + 16, c##i##1);
@@ -162,23 +171,14 @@ __attribute__((target("avx512bf16"))) void microkernel_avx512_bf16(int64_t kc, c
   const uint32_t* a = reinterpret_cast<const uint32_t*>(a_panel);
   const uint32_t* b = reinterpret_cast<const uint32_t*>(b_panel);
   EGOPD_ROWS(EGOPD_DECLARE)
-  for (int64_t p = 0, pairs = (kc + 1) / 2; p < pairs; ++p) {
-    const __m512i b0 = _mm512_load_si512(b), b1 = _mm512_load_si512(b + 16);
-    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR), _MM_HINT_T0);
-    _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR + 16), _MM_HINT_T0);
-    EGOPD_ROWS(EGOPD_DOT)
-    a += MR;
-    b += NR;
-  }
+  EGOPD_SLOT_LOOP((kc + 1) / 2)
   alignas(64) float sum[MR * NR];
   EGOPD_ROWS(EGOPD_STORE)
   store_tile(sum, c, ldc, mr, nr, ep);
 }
 
+#undef EGOPD_DOT_INSN
 #undef EGOPD_STORE
-#undef EGOPD_DOT
-#undef EGOPD_DECLARE
-#undef EGOPD_ROWS
 
 __attribute__((target("avx512bf16"))) void to_bf16_pairs_avx512(float* panel, int width, int64_t kc) {
   // In place: pair p is written over float rows <= p, all of them read before (row 0 by this very step, whose
@@ -261,16 +261,8 @@ void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t 
   quantize_quad_groups<false>(src, dst, width, kc, group);
 }
 
-#define EGOPD_ROWS(X) X(0) X(1) X(2) X(3) X(4) X(5) X(6) X(7) X(8) X(9) X(10) X(11)
-#define EGOPD_DECLARE(i) __m512i c##i##0 = _mm512_setzero_si512(), c##i##1 = _mm512_setzero_si512();
-// vpdpbusd as inline assembly: with the intrinsic, GCC 12 copies each accumulator before the instruction (its
-// destination is also its input) and spills the tile to the stack (measured 3.6x slower).
-#define EGOPD_DOT(i)                                                              \
-  {                                                                               \
-    const __m512i av = _mm512_set1_epi32(a[(i)]);                                 \
-    asm("vpdpbusd %[b], %[a], %[c]" : [c] "+v"(c##i##0) : [a] "v"(av), [b] "v"(b0)); \
-    asm("vpdpbusd %[b], %[a], %[c]" : [c] "+v"(c##i##1) : [a] "v"(av), [b] "v"(b1)); \
-  }
+#define EGOPD_DECLARE_INT(i) __m512i c##i##0 = _mm512_setzero_si512(), c##i##1 = _mm512_setzero_si512();
+#define EGOPD_DOT_INSN "vpdpbusd"
 // sum = fma(float(int32 sum - correction), s_row * s_col, sum), as on every path (gemm_i8.cpp).
 #define EGOPD_SCALE(i)                                                                                     \
   {                                                                                                        \
@@ -294,15 +286,8 @@ __attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, c
     const I8Group pa(a_panel, MR, ep.i8_group, 4, g), pb(b_panel, NR, ep.i8_group, 4, g);
     const int32_t* a = pa.slots;
     const int32_t* b = pb.slots;
-    EGOPD_ROWS(EGOPD_DECLARE)
-    for (int64_t p = 0, quads = i8_slot_rows(std::min(ep.i8_group, kc - k0), 4); p < quads; ++p) {
-      const __m512i b0 = _mm512_loadu_si512(b), b1 = _mm512_loadu_si512(b + 16);
-      _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR), _MM_HINT_T0);
-      _mm_prefetch(reinterpret_cast<const char*>(b + kPrefetchB * NR + 16), _MM_HINT_T0);
-      EGOPD_ROWS(EGOPD_DOT)
-      a += MR;
-      b += NR;
-    }
+    EGOPD_ROWS(EGOPD_DECLARE_INT)
+    EGOPD_SLOT_LOOP(i8_slot_rows(std::min(ep.i8_group, kc - k0), 4))
     // Each sum exceeds the true one by 128 * (the B lane's sum): A's bytes are offset to unsigned.
     const __m512i corr0 = _mm512_slli_epi32(_mm512_loadu_si512(pb.sum), 7);
     const __m512i corr1 = _mm512_slli_epi32(_mm512_loadu_si512(pb.sum + 16), 7);
@@ -313,6 +298,9 @@ __attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, c
 }
 
 #undef EGOPD_SCALE
+#undef EGOPD_DOT_INSN
+#undef EGOPD_DECLARE_INT
+#undef EGOPD_SLOT_LOOP
 #undef EGOPD_DOT
 #undef EGOPD_DECLARE
 #undef EGOPD_ROWS
