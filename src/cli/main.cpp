@@ -146,7 +146,7 @@ void print_help() {
       "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
       "  --conv direct|winograd|auto   3x3 stride-1 convolutions (predict, counterfactual, batch, bench; default\n"
       "                auto): direct, Winograd F(4x4,3x3) (F(2x2,3x3) on frames under 8 pixels), or auto:\n"
-      "                Winograd on layers with 16+ channels, 4x4+ frames and 1024+ pixels over all frames (512+\n"
+      "                Winograd on layers with 16+ channels, 4x4+ frames and 512+ pixels over all frames (256+\n"
       "                under 8x8), else direct.\n"
       "  --precision fp32|bf16|int8   arithmetic of the linear layers and convolutions (predict, counterfactual,\n"
       "                batch, bench, forward; default fp32). bf16: operands rounded to bfloat16, float32 sums;\n"

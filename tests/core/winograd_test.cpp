@@ -29,7 +29,9 @@
 #include "core/cpu.h"
 #include "core/dtype.h"
 #include "core/kernels/conv.h"
+#include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd.h"
+#include "core/kernels/winograd_internal.h"
 
 namespace egopd {
 namespace {
@@ -259,9 +261,44 @@ TEST_P(WinogradTest, ChannelTailsAndBlocking) {
     EXPECT_EQ(run_wino({1, 9, 200, 5, 5}, t, seed++), 0);    // cout over several row chunks, not a multiple of MR
     EXPECT_EQ(run_wino({2, 33, 19, 9, 11}, t, seed++), 0);   // cin not a multiple of the lanes
   }
-  // Output channels over two blocks (U beyond its budget) and tiles over several blocks: V recomputed per block.
-  EXPECT_EQ(run_wino({3, 512, 300, 36, 40}, WinogradTile::F4x4, seed++), 0);
-  EXPECT_EQ(run_wino({2, 520, 260, 40, 36}, WinogradTile::F2x2, seed++), 0);
+}
+
+// Several blocks of output channels and of tiles, on small shapes under shrunken scratch budgets: both orders of
+// the two block loops and the one-block-of-all-tiles case are reached (asserted on the blocking the driver uses)
+// and checked against the reference.
+TEST_P(WinogradTest, EveryBlockingOrder) {
+  const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
+  const int MR = path.mr, L = path.nr;
+  struct Restore {
+    wino_detail::WinogradBudgets saved = wino_detail::winograd_budgets();
+    ~Restore() { wino_detail::winograd_budgets() = saved; }
+  } restore;
+  wino_detail::WinogradBudgets& budget = wino_detail::winograd_budgets();
+  uint32_t seed = 90;
+  for (WinogradTile t : kTiles) {
+    const int64_t m = t == WinogradTile::F4x4 ? 4 : 2, a2 = (m + 2) * (m + 2);
+    const int64_t n = 2, cin = 20, h = 11 * m, w = 6 * m + 1, ntiles = n * 11 * 7;  // partial tiles on the right
+    budget.tiles = 1;  // one panel of tiles per block
+    budget.min_block_tiles = 1;
+    budget.whole_tiles = 0;
+    // Blocks of more than L output channels: output-channel blocks outside, V recomputed for each.
+    budget.filter = a2 * cin * 4 * 3 * L;
+    int64_t cout = 6 * L + 5;
+    wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    ASSERT_TRUE(b.ncb > 1 && b.ntb > 1 && !b.tiles_outside) << b.ncb << " " << b.ntb;
+    EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
+    // Blocks of MR (< L) output channels: tile blocks outside, U recomputed for each.
+    budget.filter = a2 * cin * 4 * MR;
+    cout = 3 * MR + 1;
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    ASSERT_TRUE(b.ncb > 1 && b.ntb > 1 && b.tiles_outside) << b.ncb << " " << b.ntb;
+    EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
+    // All tiles in one block, shared by the blocks of output channels.
+    budget.whole_tiles = int64_t(1) << 40;
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    ASSERT_TRUE(b.ncb > 1 && b.ntb == 1) << b.ncb << " " << b.ntb;
+    EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
+  }
 }
 
 TEST_P(WinogradTest, WeightDtypesAndEpilogues) {
@@ -290,7 +327,10 @@ TEST_P(WinogradTest, Conv2dDispatch) {
         << conv_algo_name(algo);
   }
   EXPECT_FALSE(winograd_wins(3, 128, 16, 256, 256));  // the VAE's 3-channel output: direct
-  EXPECT_FALSE(winograd_wins(1280, 1280, 8, 8, 8));    // 8x8 frames, few of them: direct
+  EXPECT_FALSE(winograd_wins(1280, 1280, 4, 8, 8));    // 8x8 frames, few of them: direct
+  EXPECT_TRUE(winograd_wins(1280, 1280, 8, 8, 8));
+  EXPECT_FALSE(winograd_wins(1280, 1280, 8, 4, 4));    // 4x4 frames (F(2x2)): 256 pixels in all needed
+  EXPECT_TRUE(winograd_wins(1280, 1280, 16, 4, 4));
   EXPECT_TRUE(winograd_wins(512, 512, 1, 64, 64));
   EXPECT_EQ(winograd_tile_for(4, 4), WinogradTile::F2x2);
   EXPECT_EQ(winograd_tile_for(3, 40), WinogradTile::F2x2);

@@ -5,8 +5,9 @@
 //
 // Memory: the transformed filters are recomputed on every call, never kept (a transformed copy of every 3x3 filter
 // would be 4x (F(4x4): 36/9) the fp32 weights, 8x the stored F16 ones: several GB for the U-Net). U is blocked over
-// output channels to kFilterBudget bytes, V and M over tiles to kTileBudget bytes; the scratch is the calling
-// thread's, grown on demand and kept like the GEMM's packing scratch.
+// output channels to WinogradBudgets::filter bytes, V and M over tiles to ::tiles bytes (all tiles up to
+// ::whole_tiles when several blocks of output channels share them); the scratch is the calling thread's, grown on
+// demand and kept like the GEMM's packing scratch.
 #include "core/kernels/winograd.h"
 
 #include <omp.h>
@@ -24,7 +25,38 @@
 
 namespace egopd {
 
+namespace {
+int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
+}  // namespace
+
 namespace wino_detail {
+
+WinogradBudgets& winograd_budgets() {
+  static WinogradBudgets b;
+  return b;
+}
+
+WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes) {
+  const int64_t K = std::max<int64_t>(cin, 1), L = lanes;
+  const WinogradBudgets& budget = winograd_budgets();
+  WinogradBlocking b;
+  // Output-channel blocks (rows of U), then tile blocks (columns of V and M), each a whole number of panels.
+  b.co = std::max<int64_t>(mr, budget.filter / (a2 * K * 4) / mr * mr);
+  b.ncb = ceil_div(cout, b.co);
+  b.co = ceil_div(ceil_div(cout, b.ncb), mr) * mr;
+  b.tb = std::max(L, std::max(budget.min_block_tiles, budget.tiles / (a2 * (K + b.co) * 4)) / L * L);
+  // Several blocks of output channels each need every tile's V: rather than transforming the input again for
+  // each, keep all tiles in one block when that fits budget.whole_tiles (U-Net layers of 640 channels on 16x16
+  // frames: 2x faster).
+  if (b.ncb > 1 && ntiles * a2 * (K + b.co) * 4 <= budget.whole_tiles) b.tb = ceil_div(ntiles, L) * L;
+  b.ntb = ceil_div(ntiles, b.tb);
+  b.tb = ceil_div(ceil_div(ntiles, b.ntb), L) * L;
+  // With several blocks of both, one transform is recomputed for every block of the other: V for each block of
+  // output channels, or U for each block of tiles. Recompute the smaller: the input transform costs about as much
+  // per (tile, input channel) as the filter transform per (output channel, input channel).
+  b.tiles_outside = b.ncb > 1 && b.ntb > 1 && b.ntb * cout < b.ncb * ntiles;
+  return b;
+}
 
 void apply_act_inplace(Act act, float* v, int64_t n) {
   switch (act) {
@@ -56,13 +88,7 @@ namespace {
 
 using wino_detail::PanelGeom;
 
-constexpr int64_t kFilterBudget = int64_t(16) << 20;  // bytes of U (one block of output channels)
-constexpr int64_t kTileBudget = int64_t(4) << 20;     // bytes of V + M (one block of tiles)
-// Fewest tiles per block: U is re-read from memory for every block, >= 64 flops per byte of it.
-constexpr int64_t kMinBlockTiles = 128;
-constexpr double kSerialFlops = 4e5;                  // direct-equivalent flops below which one thread runs
-
-int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
+constexpr double kSerialFlops = 4e5;  // direct-equivalent flops below which one thread runs
 
 // The calling thread's scratch, 64-byte aligned (the B panels the micro-kernels load must be), grown on demand.
 float* thread_scratch(size_t floats) {
@@ -87,22 +113,13 @@ PanelGeom panel_geom(int64_t g0, int nt, int64_t tiles_x, int64_t tpf, int64_t h
   return pg;
 }
 
-// g[t*L + j] = weight(o, c0 + j, tap t) for j < len (dequantised), 0 for len <= j < L.
-void load_filters(const Operand& wt, int64_t cin, int64_t o, int64_t c0, int len, int L, float* g) {
-  const int64_t base = (o * cin + c0) * 9;
-  const auto gather = [&](const auto* src, auto convert) {
-    for (int j = 0; j < len; ++j)
-      for (int t = 0; t < 9; ++t) g[t * L + j] = convert(src[base + j * 9 + t]);
-  };
-  switch (wt.dtype) {
-    case DType::F32: gather(static_cast<const float*>(wt.data), [](float v) { return v; }); break;
-    case DType::F16: gather(static_cast<const uint16_t*>(wt.data), half_to_float); break;
-    case DType::BF16: gather(static_cast<const uint16_t*>(wt.data), bf16_to_float); break;
-    default: {
-      const float scale = wt.scale[o];
-      gather(static_cast<const int8_t*>(wt.data), [scale](int8_t q) { return float(q) * scale; });
-    }
-  }
+// g[t*L + j] = weight(o, c0 + j, tap t) for j < len, 0 for len <= j < L, of int8 weights dequantised with the
+// output channel's scale (float weights go through the path's B packer instead).
+void load_filters_i8(const Operand& wt, int64_t cin, int64_t o, int64_t c0, int len, int L, float* g) {
+  const int8_t* src = static_cast<const int8_t*>(wt.data) + (o * cin + c0) * 9;
+  const float scale = wt.scale[o];
+  for (int j = 0; j < len; ++j)
+    for (int t = 0; t < 9; ++t) g[t * L + j] = float(src[j * 9 + t]) * scale;
   for (int t = 0; t < 9; ++t)
     for (int j = len; j < L; ++j) g[t * L + j] = 0.0f;
 }
@@ -118,12 +135,12 @@ WinogradTile winograd_tile_for(int64_t h, int64_t w) {
 
 bool winograd_wins(int64_t cin, int64_t cout, int64_t n, int64_t h, int64_t w) {
   // Few channels: the transforms (O(cin + cout) per tile) outweigh the GEMM saving (O(cin * cout) per tile).
-  // Frames under 4 pixels: edge tiles are mostly padding. Few pixels in all: the per-call filter transform (per
-  // channel pair about 60 ns for F(4x4) on one Zen 5 core, less for F(2x2): 16 values instead of 36) is not paid
-  // back by the GEMM saving per pixel. Measured on 1280 channels, one thread: F(4x4) 8x8 loses 2x at 4 frames (256 pixels) and
-  // wins 1.2x at 16 (1024 pixels); F(2x2) 4x4 wins 1.1x at 16 frames (256 pixels) and 1.5x at 32.
+  // Frames under 4 pixels: edge tiles are mostly padding. Few pixels in all: the per-call filter transform is not
+  // paid back by the GEMM saving per pixel. Measured on 1280 channels, 2 threads of an AMD EPYC (Zen 5 class): F(4x4)
+  // on 8x8 frames is even at 8 frames (512 pixels) and wins 1.7x at 16; F(2x2) on 4x4 frames is even at 8 frames
+  // (128 pixels) and wins 1.35x at 16 (256 pixels).
   if (cin < 16 || cout < 16 || std::min(h, w) < 4) return false;
-  return n * h * w >= (winograd_tile_for(h, w) == WinogradTile::F4x4 ? 1024 : 512);
+  return n * h * w >= (winograd_tile_for(h, w) == WinogradTile::F4x4 ? 512 : 256);
 }
 
 void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
@@ -139,14 +156,8 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const int64_t tiles_x = ceil_div(w, m), tpf = ceil_div(h, m) * tiles_x, ntiles = n * tpf;
   const int64_t K = std::max<int64_t>(cin, 1);
 
-  // Output-channel blocks (rows of U), then tile blocks (columns of V and M), each a whole number of panels.
-  int64_t co = std::max<int64_t>(MR, kFilterBudget / (a2 * K * 4) / MR * MR);
-  const int64_t ncb = ceil_div(cout, co);
-  co = ceil_div(ceil_div(cout, ncb), MR) * MR;
-  int64_t tb = std::max(kMinBlockTiles, kTileBudget / (a2 * (K + co) * 4)) / L * L;
-  const int64_t ntb = ceil_div(ntiles, tb);
-  tb = ceil_div(ceil_div(ntiles, ntb), L) * L;
-
+  const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+  const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
   const int64_t u_xi = co * K, v_xi = tb * K, m_xi = co * tb;  // floats per tile position
   const int64_t u_floats = (a2 * u_xi + 15) / 16 * 16, v_floats = (a2 * v_xi + 15) / 16 * 16;
   float* const U = thread_scratch(size_t(u_floats + v_floats + a2 * m_xi));
@@ -172,17 +183,22 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
         for (int i = 0; i < MR; ++i) {
           const int64_t o = o0 + op * MR + i;
           if (o < cout && cin > 0) {
-            load_filters(weight, cin, o, c0, len, L, g);
+            if (weight.dtype == DType::I8) {
+              load_filters_i8(weight, cin, o, c0, len, L, g);
+            } else {  // g[t*L + j] = w(o, c0 + j, t): the path's B packer (converts and transposes in registers)
+              const int64_t first = (o * cin + c0) * 9;
+              path.pack_b(static_cast<const char*>(weight.data) + first * int64_t(dtype_size(weight.dtype)),
+                          weight.dtype, 9, true, nullptr, 9, len, g);
+            }
             kern.filter[ti](g, u[i]);
           } else {
             std::fill_n(u[i], a2 * L, 0.0f);
           }
         }
-        for (int64_t xi = 0; xi < a2; ++xi) {
-          float* d = U + xi * u_xi + op * MR * K + c0 * MR;
-          for (int j = 0; j < len; ++j)
-            for (int i = 0; i < MR; ++i) d[j * MR + i] = u[i][xi * L + j];
-        }
+        // U[xi][op][c0 + j][i] = u[i][xi*L + j]: the path's A packer (register transposes)
+        for (int64_t xi = 0; xi < a2; ++xi)
+          path.pack_a(&u[0][xi * L], DType::F32, 36 * wino_detail::kMaxLanes, false, nullptr, MR, len,
+                      U + xi * u_xi + op * MR * K + c0 * MR);
       }
   };
 
@@ -241,15 +257,24 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const double flops = 18.0 * double(cout) * double(cin) * double(n * h * w);
   int threads = omp_in_parallel() ? 1 : num_threads();
   if (flops < kSerialFlops) threads = 1;
-  // Output-channel blocks outside, tile blocks inside: V is recomputed for each block of output channels unless
-  // all tiles fit one block (the filter budget keeps that to 2-3 blocks on the largest layers).
 #pragma omp parallel num_threads(threads) if (threads > 1)
-  for (int64_t cb = 0; cb < ncb; ++cb) {
-    filter_phase(cb);
+  if (blk.tiles_outside) {
     for (int64_t tbi = 0; tbi < ntb; ++tbi) {
-      if (ntb > 1 || cb == 0) input_phase(tbi);
-      gemm_phase(tbi);
-      output_phase(cb, tbi);
+      input_phase(tbi);
+      for (int64_t cb = 0; cb < ncb; ++cb) {
+        filter_phase(cb);
+        gemm_phase(tbi);
+        output_phase(cb, tbi);
+      }
+    }
+  } else {
+    for (int64_t cb = 0; cb < ncb; ++cb) {
+      filter_phase(cb);
+      for (int64_t tbi = 0; tbi < ntb; ++tbi) {
+        if (ntb > 1 || cb == 0) input_phase(tbi);
+        gemm_phase(tbi);
+        output_phase(cb, tbi);
+      }
     }
   }
 }

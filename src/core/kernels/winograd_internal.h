@@ -61,6 +61,24 @@ const WinogradKernels& winograd_kernels_avx2();
 const WinogradKernels& winograd_kernels_avx512();
 const WinogradKernels& winograd_kernels_neon();
 
+// Scratch budgets of conv2d_winograd (bytes), which choose its blocking; tests shrink them to reach every blocking
+// on small shapes.
+struct WinogradBudgets {
+  int64_t filter = int64_t(16) << 20;       // U: one block of output channels
+  int64_t tiles = int64_t(4) << 20;         // V + M: one block of tiles ...
+  int64_t whole_tiles = int64_t(32) << 20;  // ... or all tiles, when several blocks of output channels share them
+  int64_t min_block_tiles = 128;            // U is re-read for every block of tiles: >= 64 flops per byte of it
+};
+WinogradBudgets& winograd_budgets();
+
+// How conv2d_winograd blocks a call of ntiles tiles (a2 = alpha^2 tile positions, mr x lanes micro-tiles).
+struct WinogradBlocking {
+  int64_t co = 0, ncb = 0;   // output channels per block (a multiple of mr), blocks
+  int64_t tb = 0, ntb = 0;   // tiles per block (a multiple of lanes), blocks
+  bool tiles_outside = false;  // loop over tile blocks outside (U recomputed per tile block), else V per channel block
+};
+WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes);
+
 // act applied in place to n values (the element-wise kernels; serial for the small blocks passed here).
 void apply_act_inplace(Act act, float* v, int64_t n);
 
