@@ -5,7 +5,8 @@
 #
 # OpenCV's arm64 development packages cannot be installed beside the amd64 ones (they conflict file by file), so
 # libopencv-dev:arm64 and its dependencies are extracted (not installed) into build-arm64/opencv-root/ with
-# mmdebstrap, from the machine's own Debian sources; nothing is left out of the build.
+# mmdebstrap, from the machine's own Debian sources; nothing is left out of the full build (--quick builds only the
+# tests it runs and the egopd command).
 #
 # usage: scripts/test-arm64.sh [--quick] [ctest arguments...]
 #   --quick (what the test command runs): every kernel, model-component and golden test and the command-line basics,
