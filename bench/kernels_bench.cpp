@@ -6,11 +6,13 @@
 #include <omp.h>
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <random>
 #include <string>
 #include <vector>
 
+#include "core/cpu.h"
 #include "core/dtype.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
@@ -128,13 +130,15 @@ void BM_egopd_conv_temporal3(benchmark::State& state) {
 }
 
 #if EGOPD_BENCH_ONEDNN
-// oneDNN direct convolution, f32, bias, forward inference. range(5): 0 = plain NCHW activations (our layout),
-// 1 = oneDNN's preferred blocked layouts (activation reorders not timed; weights always reordered once, untimed).
+// oneDNN convolution, f32, bias, forward inference. range(5): 0 = direct on plain NCHW activations (our layout),
+// 1 = direct on oneDNN's preferred blocked layouts (activation reorders not timed; weights always reordered once,
+// untimed), 2 = Winograd on blocked layouts (skipped where this oneDNN has no Winograd for the CPU). egopd's
+// convolution runs the algorithm EGOPD_CONV selects (auto: Winograd on these shapes; direct to compare kernels).
 void BM_onednn_conv3x3(benchmark::State& state) {
   using namespace dnnl;
   const int64_t n = state.range(0), cin = state.range(1), cout = state.range(2), h = state.range(3),
                 w = state.range(4);
-  const bool blocked = state.range(5) == 1;
+  const bool blocked = state.range(5) >= 1, winograd = state.range(5) == 2;
   omp_set_num_threads(egopd::num_threads());
   engine eng(engine::kind::cpu, 0);
   stream s(eng);
@@ -144,9 +148,16 @@ void BM_onednn_conv3x3(benchmark::State& state) {
   const memory::desc src_md(src_d, dtp::f32, blocked ? tag::any : tag::nchw);
   const memory::desc dst_md(dst_d, dtp::f32, blocked ? tag::any : tag::nchw);
   const memory::desc wei_md(wei_d, dtp::f32, tag::any), bias_md(bias_d, dtp::f32, tag::x);
-  const convolution_forward::desc desc(prop_kind::forward_inference, algorithm::convolution_direct, src_md, wei_md,
-                                       bias_md, dst_md, {1, 1}, {1, 1}, {1, 1});
-  const convolution_forward::primitive_desc pd(desc, eng);
+  const convolution_forward::desc desc(prop_kind::forward_inference,
+                                       winograd ? algorithm::convolution_winograd : algorithm::convolution_direct,
+                                       src_md, wei_md, bias_md, dst_md, {1, 1}, {1, 1}, {1, 1});
+  convolution_forward::primitive_desc pd;
+  try {
+    pd = convolution_forward::primitive_desc(desc, eng);
+  } catch (const dnnl::error&) {
+    state.SkipWithError("no oneDNN implementation of this algorithm on this CPU");
+    return;
+  }
   std::vector<float> x = random_floats(size_t(n * cin * h * w), 3), wt = random_floats(size_t(cout * cin * 9), 4),
                      bias = random_floats(size_t(cout), 5);
   memory user_src({src_d, dtp::f32, tag::nchw}, eng, x.data()), user_wei({wei_d, dtp::f32, tag::oihw}, eng, wt.data());
@@ -160,7 +171,7 @@ void BM_onednn_conv3x3(benchmark::State& state) {
     s.wait();
   }
   set_flops(state, 2.0 * n * cout * h * w * cin * 9);
-  state.SetLabel(std::string(blocked ? "blocked " : "nchw ") + pd.impl_info_str());
+  state.SetLabel(std::string(winograd ? "winograd " : blocked ? "blocked " : "nchw ") + pd.impl_info_str());
 }
 #endif
 
@@ -177,7 +188,7 @@ BENCHMARK(BM_openblas_sgemm)->Apply([](auto* b) { gemm_shapes(b, false); });
 #endif
 BENCHMARK(BM_egopd_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 1); });
 #if EGOPD_BENCH_ONEDNN
-BENCHMARK(BM_onednn_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 1); });
+BENCHMARK(BM_onednn_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 2); });
 #endif
 BENCHMARK(BM_egopd_conv_temporal3)
     ->Args({1, 16, 320, 320, 1024})
@@ -190,10 +201,18 @@ BENCHMARK(BM_egopd_conv_temporal3)
 
 int main(int argc, char** argv) {
 #if EGOPD_BENCH_ONEDNN
-  // egopd's kernels use AVX2/FMA (the 196 GFLOP/s peak); compare with oneDNN at the same ISA unless asked
-  // otherwise (EGOPD_BENCH_ONEDNN_ISA=native lets it use AVX-512 where the CPU has it).
+  // oneDNN runs at the instruction set of egopd's kernel path: capped at AVX2 when egopd runs its avx2 path
+  // (EGOPD_KERNELS=avx2, or a CPU without AVX-512), its own best otherwise. EGOPD_BENCH_ONEDNN_ISA=avx2|native
+  // overrides that.
   const char* isa = std::getenv("EGOPD_BENCH_ONEDNN_ISA");
-  if (!isa || std::string(isa) != "native") dnnl::set_max_cpu_isa(dnnl::cpu_isa::avx2);
+  const std::string want = isa ? isa : egopd::kernel_path() == egopd::KernelPath::Avx512 ? "native" : "avx2";
+  if (want != "native" && want != "avx2") {
+    std::fprintf(stderr, "kernels_bench: EGOPD_BENCH_ONEDNN_ISA must be avx2 or native, not '%s'\n", want.c_str());
+    return 1;
+  }
+  if (want == "avx2") dnnl::set_max_cpu_isa(dnnl::cpu_isa::avx2);
+  std::fprintf(stderr, "kernels_bench: egopd kernels %s, oneDNN ISA %s\n",
+               egopd::kernel_path_name(egopd::kernel_path()), want.c_str());
 #endif
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
