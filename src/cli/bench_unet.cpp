@@ -1,4 +1,6 @@
-// `egopd bench unet`: one or more denoiser evaluations of a real-size U-Net with deterministic random weights.
+// `egopd bench unet`: one or more denoiser evaluations of a real-size U-Net with deterministic random weights, after
+// untimed warm-up evaluations (the first evaluation of a process pays the first touch of the weights, activations
+// and kernel scratch: up to 40% slower than the steady state of a sampler's later steps).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -30,13 +32,14 @@ int bench_unet(const Args& a) {
   const int64_t size = a.get_int("size", 256);
   const DType dtype = parse_weight_dtype(a.get("dtype", "f16"), "dtype");
   const int64_t evals = a.get_int("evals", 1);
+  const int64_t warmup = a.get_int("warmup", 1);
   const bool pifr = a.flag("pifr");
   const bool json = a.flag("json");
   const std::string weights_dir = a.get("weights", "");
   a.finish();
   if (config != "svd-xt") throw Error("bench unet: --config must be svd-xt (got '" + config + "')");
-  if (frames < 1 || size < 64 || size % 64 || evals < 1)
-    throw Error("bench unet: need --frames >= 1, --size a multiple of 64, --evals >= 1");
+  if (frames < 1 || size < 64 || size % 64 || evals < 1 || warmup < 0)
+    throw Error("bench unet: need --frames >= 1, --size a multiple of 64, --evals >= 1, --warmup >= 0");
 
   UNetConfig cfg = UNetConfig::svd_xt(pifr);
   std::shared_ptr<const WeightMap> weights;
@@ -72,6 +75,13 @@ int bench_unet(const Args& a) {
   }
   UNetConditioning cond = unet.prepare(ehs, pifr ? &text : nullptr);
 
+  for (int64_t e = 0; e < warmup; ++e) {
+    auto t0 = std::chrono::steady_clock::now();
+    Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
+    if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
+    std::fprintf(stderr, "bench unet: warm-up %lld/%lld %.2f s (not timed)\n", (long long)(e + 1), (long long)warmup,
+                 seconds_since(t0));
+  }
   StageTimes stages;
   unet.set_profile(&stages);
   std::vector<double> secs, cpu;
@@ -101,6 +111,7 @@ int bench_unet(const Args& a) {
   r.extra["dtype"] = dtype_name(probe ? probe->dtype : dtype);
   r.extra["pifr"] = pifr;
   r.extra["evaluations"] = evals;
+  r.extra["warmup_evaluations"] = warmup;
   r.extra["gflop_pytorch_count"] = fl.total / 1e9;
   r.extra["weights_bytes"] = weights->total_bytes();
   nlohmann::ordered_json br = nlohmann::ordered_json::object();

@@ -34,7 +34,7 @@ const BenchTarget kBenchTargets[] = {
      "      [--save-result FILE] [--compare-to FILE]   save latents, decoded clip and taxels / report their rel_l2\n"
      "      and max_abs error against a saved run (e.g. --precision bf16 against an fp32 run)"},
     {"unet", bench_unet,
-     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--pifr] [--weights DIR]"},
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr] [--weights DIR]"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"vae_encode", bench_vae_encode, "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--repeat 1]"},
