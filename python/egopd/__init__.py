@@ -56,7 +56,7 @@ _PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(_P
 class _LoadOptions(ctypes.Structure):
     _fields_ = [("struct_size", ctypes.c_size_t), ("threads", ctypes.c_int), ("low_mem", ctypes.c_int),
                 ("precision", ctypes.c_char_p), ("size", ctypes.c_int64), ("template_path", ctypes.c_char_p),
-                ("log", _LOG_FN), ("log_user", ctypes.c_void_p)]
+                ("log", _LOG_FN), ("log_user", ctypes.c_void_p), ("conv", ctypes.c_char_p)]
 
 
 class _PredictOptions(ctypes.Structure):
@@ -296,15 +296,18 @@ class Model:
     """A loaded model; any number of predictions run on it. path None: the built-in tiny synthetic model.
     threads None: EGOPD_THREADS, else the physical cores (process-wide). size: the frame size the model is prepared
     for (another size in a call reloads it). precision: "fp32", "bf16" or "int8", the arithmetic of the linear
-    layers and convolutions in this model's calls (README, `--precision`). log: a callable receiving the run's log
-    lines (what `egopd predict` prints on stderr); None: quiet."""
+    layers and convolutions in this model's calls (README, `--precision`). conv: "direct", "winograd" or "auto",
+    the algorithm of its 3x3 convolutions (README, `--conv`); None: EGOPD_CONV, else "auto". log: a callable
+    receiving the run's log lines (what `egopd predict` prints on stderr); None: quiet."""
 
-    def __init__(self, path=None, threads=None, low_mem=False, size=256, template=None, precision="fp32", log=None):
+    def __init__(self, path=None, threads=None, low_mem=False, size=256, template=None, precision="fp32", log=None,
+                 conv=None):
         o = _LoadOptions()
         _lib.egopd_load_options_init(ctypes.byref(o))
         o.threads = threads or 0
         o.low_mem = 1 if low_mem else 0
         o.precision = precision.encode() if precision else None
+        o.conv = conv.encode() if conv else None
         o.size = size
         o.template_path = _path(template)
         self._log = _LOG_FN(lambda _u, line: log(line.decode("utf-8", "replace"))) if log else _LOG_FN()

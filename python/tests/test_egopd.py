@@ -154,6 +154,8 @@ class ModuleTest(unittest.TestCase):
                     self.assertIn(needle, msg)
         with self.assertRaisesRegex(egopd.ArgumentError, "expected fp32, bf16 or int8"):
             egopd.Model(precision="fp16")
+        with self.assertRaisesRegex(egopd.ArgumentError, "conv 'fft': expected direct, winograd or auto"):
+            egopd.Model(conv="fft")
         with self.assertRaisesRegex(egopd.Error, "/nonexistent/model"):
             egopd.Model("/nonexistent/model")
         self.assertEqual(self.model.predict(num_frames=2).taxels.shape, (2, 162))  # still usable

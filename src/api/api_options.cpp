@@ -96,10 +96,19 @@ Precision load_precision(const egopd_load_options& o) {
   return p;
 }
 
+ConvAlgo load_conv(const egopd_load_options& o) {
+  const std::string name = str(o.conv);
+  if (name.empty()) return conv_algo_from_env();
+  ConvAlgo a = ConvAlgo::Auto;
+  if (!conv_algo_from_name(name, &a)) throw ArgumentError("conv '" + name + "': expected direct, winograd or auto");
+  return a;
+}
+
 PredictOptions load_predict_options(const char* model_dir, const egopd_load_options& o) {
   if (o.threads < 0 || o.threads > 1024)
     throw ArgumentError("--threads must be between 1 and 1024 (or 0: the default), got " + std::to_string(o.threads));
   load_precision(o);
+  load_conv(o);
   PredictOptions po;
   po.model_dir = str(model_dir);
   po.size = bounded(o.size, 64, 4096, "--size");

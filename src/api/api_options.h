@@ -4,6 +4,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
 #include "egopd.h"
 #include "pipeline/predict_run.h"
@@ -24,6 +25,8 @@ egopd_predict_options read_predict_options(const egopd_predict_options* o);
 PredictOptions load_predict_options(const char* model_dir, const egopd_load_options& o);
 // The compute precision of the load options (NULL or "": fp32).
 Precision load_precision(const egopd_load_options& o);
+// The 3x3 convolution algorithm of the load options (NULL or "": EGOPD_CONV, else auto).
+ConvAlgo load_conv(const egopd_load_options& o);
 // One call's options over the model's: sampler, steps, seed, frames, size, guidance, paths; range-checked with the
 // egopd predict options' bounds and wording.
 PredictOptions call_predict_options(const PredictOptions& load, const egopd_predict_options& o);

@@ -26,6 +26,7 @@ struct egopd_model {
   egopd::PredictOptions load;  // model_dir as given ("": the built-in model), size, low_mem, template_path
   int threads = 0;
   egopd::Precision precision = egopd::Precision::Fp32;  // set for each of its calls, like threads
+  egopd::ConvAlgo conv = egopd::ConvAlgo::Auto;          // likewise
   egopd_log_fn log = nullptr;
   void* log_user = nullptr;
   std::unique_ptr<egopd::PredictModel> model;
@@ -74,7 +75,7 @@ egopd_status guarded(Body&& body) {
 }
 
 // A computing call: refused inside a callback of another one on this thread, then the process-wide lock and the
-// model's thread count and compute precision.
+// model's thread count, compute precision and convolution algorithm.
 class ComputeScope {
  public:
   explicit ComputeScope(const egopd_model& m) {
@@ -84,6 +85,7 @@ class ComputeScope {
     t_in_call = true;
     set_num_threads(m.threads);
     set_precision(m.precision);
+    set_conv_algo(m.conv);
   }
   ~ComputeScope() { t_in_call = false; }
   ComputeScope(const ComputeScope&) = delete;
@@ -172,6 +174,7 @@ egopd_status egopd_model_load(const char* model_dir, const egopd_load_options* o
     m->load = load_predict_options(model_dir, o);
     m->threads = o.threads;
     m->precision = load_precision(o);
+    m->conv = load_conv(o);
     m->log = o.log, m->log_user = o.log_user;
     ComputeScope scope(*m);
     m->model = std::make_unique<PredictModel>(m->load, model_hooks(*m));

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/predict_options.h"
+#include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
 #include "core/threading.h"
 #include "egopd.h"
@@ -76,6 +77,7 @@ int run_with_library(const PredictOptions& o, const VarySpec* vary) {
   egopd_load_options_init(&lo);
   lo.threads = num_threads();
   lo.precision = precision_name(precision());  // --precision
+  lo.conv = conv_algo_name(conv_algo());       // --conv (or EGOPD_CONV)
   lo.low_mem = o.low_mem ? 1 : 0;
   lo.size = o.size;
   lo.template_path = c_str_or_null(o.template_path);

@@ -132,13 +132,33 @@ class Api : public ::testing::Test {
     o.frames_bytes = frames.size();
     o.frames_count = 5, o.frames_height = H, o.frames_width = W;
   }
-  static std::string predict_csv(const egopd_predict_options& o) {
+  static std::string predict_csv(const egopd_predict_options& o, egopd_model* m = model) {
     egopd_result* r = nullptr;
-    const egopd_status st = egopd_predict(model, &o, &r);
+    const egopd_status st = egopd_predict(m, &o, &r);
     EXPECT_EQ(st, EGOPD_OK) << egopd_last_error();
     if (st != EGOPD_OK) return "";
     const std::string csv = taxels_csv(r);
     egopd_result_free(r);
+    return csv;
+  }
+  // The taxels of the frame-folder clip (seed 3) on a model of its own, loaded like the shared one but with
+  // `precision` and `conv`.
+  static std::string own_model_csv(const char* precision, const char* conv) {
+    egopd_load_options lo;
+    egopd_load_options_init(&lo);
+    lo.size = 64;
+    lo.threads = 2;
+    lo.precision = precision;
+    lo.conv = conv;
+    egopd_model* m = nullptr;
+    EXPECT_EQ(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_OK) << egopd_last_error();
+    if (!m) return "";
+    const std::string video = (root / "frames").string();
+    egopd_predict_options o = options();
+    o.video = video.c_str();
+    o.seed = 3;
+    const std::string csv = predict_csv(o, m);
+    egopd_model_free(m);
     return csv;
   }
 };
@@ -160,26 +180,28 @@ TEST_F(Api, FrameFolderMatchesTheCommand) {
 // loaded in fp32 afterwards is back in fp32 (the precision is the model's, set for each of its calls).
 TEST_F(Api, PrecisionIsTheModels) {
   const std::string video = (root / "frames").string();
+  egopd_predict_options o = options();
+  o.video = video.c_str();
+  o.seed = 3;
   for (const char* precision : {"int8", "bf16"}) {
-    egopd_load_options lo;
-    egopd_load_options_init(&lo);
-    lo.size = 64;
-    lo.threads = 2;
-    lo.precision = precision;
-    egopd_model* reduced = nullptr;
-    ASSERT_EQ(egopd_model_load((root / "model").c_str(), &lo, &reduced), EGOPD_OK) << egopd_last_error();
-    egopd_predict_options o = options();
-    o.video = video.c_str();
-    o.seed = 3;
-    egopd_result* r = nullptr;
-    ASSERT_EQ(egopd_predict(reduced, &o, &r), EGOPD_OK) << egopd_last_error();
-    const std::string got = taxels_csv(r);
-    egopd_result_free(r);
-    egopd_model_free(reduced);
+    const std::string got = own_model_csv(precision, nullptr);
     EXPECT_EQ(got, cli_taxels("--video " + video + " --seed 3 --precision " + precision)) << precision;
     EXPECT_NE(got, cli_taxels("--video " + video + " --seed 3")) << precision;
     EXPECT_EQ(predict_csv(o), cli_taxels("--video " + video + " --seed 3")) << "fp32 after " << precision;
   }
+}
+
+// A model loaded with conv "winograd" runs its 3x3 convolutions so, as `egopd predict --conv winograd` does, and a
+// model loaded with conv NULL afterwards is back at the default (auto: the tiny model's few channels take direct).
+TEST_F(Api, ConvIsTheModels) {
+  const std::string video = (root / "frames").string();
+  const std::string got = own_model_csv(nullptr, "winograd");
+  EXPECT_EQ(got, cli_taxels("--video " + video + " --seed 3 --conv winograd"));
+  EXPECT_NE(got, cli_taxels("--video " + video + " --seed 3 --conv direct"));
+  egopd_predict_options o = options();
+  o.video = video.c_str();
+  o.seed = 3;
+  EXPECT_EQ(predict_csv(o), cli_taxels("--video " + video + " --seed 3")) << "default after winograd";
 }
 
 TEST_F(Api, FramesAndMasksFromMemoryMatchTheCommand) {
@@ -310,6 +332,11 @@ TEST_F(Api, BadInputIsAnErrorNeverACrash) {
                "precision 'fp16': expected fp32, bf16 or int8");
   EXPECT_EQ(m, nullptr);
   lo.precision = "fp32";
+  lo.conv = "fft";
+  expect_error(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT,
+               "conv 'fft': expected direct, winograd or auto");
+  EXPECT_EQ(m, nullptr);
+  lo.conv = nullptr;
   expect_error(egopd_model_load((root / "frames").c_str(), &lo, &m), EGOPD_ERROR, "not a model directory");
   expect_error(egopd_model_load((root / "missing").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT, "does not exist");
   lo.size = 96;

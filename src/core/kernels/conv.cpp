@@ -156,13 +156,15 @@ bool conv_algo_from_name(const std::string& s, ConvAlgo* out) {
   return false;
 }
 
+ConvAlgo conv_algo_from_env() {
+  ConvAlgo a = ConvAlgo::Auto;
+  if (const char* e = std::getenv("EGOPD_CONV"); e && *e && !conv_algo_from_name(e, &a))
+    throw Error(std::string("EGOPD_CONV=") + e + ": unknown convolution algorithm (direct, winograd or auto)");
+  return a;
+}
+
 ConvAlgo conv_algo() {
-  if (g_conv_algo < 0) {
-    ConvAlgo a = ConvAlgo::Auto;
-    if (const char* e = std::getenv("EGOPD_CONV"); e && *e && !conv_algo_from_name(e, &a))
-      throw Error(std::string("EGOPD_CONV=") + e + ": unknown convolution algorithm (direct, winograd or auto)");
-    g_conv_algo = int(a);
-  }
+  if (g_conv_algo < 0) g_conv_algo = int(conv_algo_from_env());
   return ConvAlgo(g_conv_algo);
 }
 

@@ -18,6 +18,8 @@ enum class ConvAlgo : uint8_t { Direct, Winograd, Auto };
 const char* conv_algo_name(ConvAlgo a);                        // "direct", "winograd", "auto"
 bool conv_algo_from_name(const std::string& s, ConvAlgo* out);  // false for anything else
 ConvAlgo conv_algo();
+// The default: EGOPD_CONV when set (an Error naming it when it is not direct, winograd or auto), else Auto.
+ConvAlgo conv_algo_from_env();
 // Not thread-safe: call it between kernel calls, never during one (like set_kernel_path).
 void set_conv_algo(ConvAlgo a);
 
