@@ -17,6 +17,7 @@
 #include "core/cpu.h"
 #include "core/dtype.h"
 #include "core/kernels/conv.h"
+#include "core/kernels/gemm_internal.h"
 
 namespace egopd {
 namespace {
@@ -217,6 +218,47 @@ TEST_P(ConvTest, Same3x3) {
   EXPECT_EQ(run_conv({1, 5, 60, 5, 7, 3, 1, 1}, 17), 0);    // cout > pixels: rows split across threads
   EXPECT_EQ(run_conv({2, 5, 8, 3, 8, 3, 1, 1}, 18), 0);    // 24 pixels: whole 12-column panels across rows
   EXPECT_EQ(run_conv({1, 3, 9, 4, 5, 3, 1, 1}, 19), 0);    // 20 pixels: a 12-column panel and a tail of 8
+}
+
+// Widths that are multiples of 16: on the avx512 path these run the direct kernel that reads the frames itself
+// (conv_internal.h, conv3x3_frames_avx512), on the others the implicit GEMM; the same reference for both.
+TEST_P(ConvTest, Same3x3WidthsOf16) {
+  EXPECT_EQ(run_conv({1, 3, 5, 1, 16, 3, 1, 1}, 40), 0);      // one row: top and bottom taps outside; a 16-pixel tile
+  EXPECT_EQ(run_conv({2, 7, 13, 3, 16, 3, 1, 1}, 41), 0);     // 48 pixels: a tile across rows and a half tile
+  EXPECT_EQ(run_conv({1, 40, 25, 5, 48, 3, 1, 1}, 42), 0);    // two K passes of 20 channels; a partial row panel
+  EXPECT_EQ(run_conv({2, 70, 12, 4, 64, 3, 1, 1}, 43), 0);    // three K passes
+  EXPECT_EQ(run_conv({1, 5, 7, 9, 32, 3, 1, 1}, 44), 0);      // odd height, one tile per row
+  EXPECT_EQ(run_conv({2, 4, 12, 64, 128, 3, 1, 1}, 45), 0);   // 512 tiles: split across threads inside a frame
+  EXPECT_EQ(run_conv({1, 2, 30, 3, 256, 3, 1, 1}, 46), 0);    // interior tiles with no masked lane
+  for (DType dt : {DType::F16, DType::BF16, DType::I8})
+    for (Act act : {Act::None, Act::SiLU})
+      for (bool acc : {false, true}) {
+        EXPECT_EQ(run_conv({2, 6, 11, 3, 32, 3, 1, 1, dt, true, act, acc}, 47), 0);
+        EXPECT_EQ(run_conv({1, 45, 7, 2, 16, 3, 1, 1, dt, act == Act::None, act, acc}, 48), 0);  // two K passes
+      }
+}
+
+// On the avx512 path, conv2d runs those shapes through the frame kernel: the same numbers as calling it directly.
+TEST_P(ConvTest, FrameKernelIsWhatConv2dRuns) {
+  const auto frames = gemm_detail::gemm_path().conv3x3_frames;
+  if (GetParam() != KernelPath::Avx512) {
+    EXPECT_EQ(frames, nullptr);
+    return;
+  }
+  ASSERT_NE(frames, nullptr);
+  std::mt19937 rng(49);
+  const int64_t n = 2, cin = 40, cout = 14, h = 5, w = 48;
+  const std::vector<float> x = random_vec(size_t(n * cin * h * w), rng), bias = random_vec(size_t(cout), rng);
+  const StoredWeight wt(size_t(cout * cin * 9), DType::F16, rng, size_t(cin * 9));
+  std::vector<float> direct(size_t(n * cout * h * w)), via_conv2d(direct.size());
+  ASSERT_TRUE(frames(x.data(), n, h, w, wt.operand(cin * 9), bias.data(), cin, cout, direct.data(), Act::SiLU, false));
+  conv2d(x.data(), n, h, w, wt.operand(cin * 9), bias.data(), Conv2dGeom{cin, cout, 3, 3, 1, 1, 1, 1},
+         via_conv2d.data(), Act::SiLU);
+  EXPECT_EQ(direct, via_conv2d);
+  // What it leaves to the implicit GEMM: widths that are not multiples of 16, an activation before a residual add
+  // over several K passes.
+  EXPECT_FALSE(frames(x.data(), n, h, 40, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::None, false));
+  EXPECT_FALSE(frames(x.data(), n, h, w, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::SiLU, true));
 }
 
 TEST_P(ConvTest, Strided3x3) {

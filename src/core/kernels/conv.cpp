@@ -1,6 +1,8 @@
 // Convolutions as implicit GEMMs on the SGEMM engine: out[cout, oh*ow] = W[cout, cin*kh*kw] · col[cin*kh*kw, oh*ow]
 // per frame, where the B panels of col are packed straight from the input (never a whole im2col); frames are the
-// engine's column segments, so the weight panels are packed once per column block, not once per frame.
+// engine's column segments, so the weight panels are packed once per column block, not once per frame. A kernel path
+// may run float32 3x3 stride-1 convolutions its own way (GemmPath::conv3x3_frames: AVX-512, from a per-tile window
+// of the input instead of an im2col panel), and 3x3 stride-1 ones may take Winograd (winograd.h).
 #include "core/kernels/conv.h"
 
 #include <algorithm>
@@ -172,8 +174,12 @@ void set_conv_algo(ConvAlgo a) { g_conv_algo = int(a); }
 
 namespace {
 
+bool same_3x3(const Conv2dGeom& g) {
+  return g.kh == 3 && g.kw == 3 && g.stride_h == 1 && g.stride_w == 1 && g.pad_h == 1 && g.pad_w == 1;
+}
+
 bool use_winograd(const Conv2dGeom& g, int64_t n, int64_t h, int64_t w) {
-  const bool same3x3 = g.kh == 3 && g.kw == 3 && g.stride_h == 1 && g.stride_w == 1 && g.pad_h == 1 && g.pad_w == 1;
+  const bool same3x3 = same_3x3(g);
   // Winograd is a float32 algorithm: reduced-precision compute (precision()) stays on the direct path.
   const ConvAlgo algo = same3x3 && precision() == Precision::Fp32 ? conv_algo() : ConvAlgo::Direct;
   return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && winograd_wins(g.cin, g.cout, n, h, w));
@@ -229,6 +235,10 @@ void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weig
   if (n <= 0 || oh <= 0 || ow <= 0 || g.cout <= 0) return;
   if (use_winograd(g, n, h, w))
     return conv2d_winograd(x, n, h, w, weight, bias, g.cin, g.cout, y, act, accumulate, winograd_tile_for(h, w));
+  const auto frames = gemm_detail::gemm_path().conv3x3_frames;  // false: not a shape it takes
+  if (same_3x3(g) && frames && precision() == Precision::Fp32 &&
+      frames(x, n, h, w, weight, bias, g.cin, g.cout, y, act, accumulate))
+    return;
   const int64_t K = g.cin * g.kh * g.kw;
   Operand wa = weight;  // [cout, cin*kh*kw] row-major
   wa.trans = false;
