@@ -47,6 +47,7 @@ struct ConvCase {
   bool accumulate = false;
   bool bf16 = false;  // Precision::Bf16: the reference multiplies the weights and inputs rounded to bfloat16
   bool int8 = false;  // Precision::Int8: the float32 bound plus the quantisation bound of Int8Bound
+  bool own_3x3 = false;  // call the kernel path's own 3x3 kernel (GemmPath::conv3x3_frames) where it has one
 };
 
 // Precision::Int8 quantises each weight row and each input column (a pixel's receptive field) per K group with the
@@ -86,7 +87,12 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
   set_precision(precision_of(c.bf16, c.int8));
-  conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
+  const auto own = c.own_3x3 ? gemm_detail::gemm_path().conv3x3_frames : nullptr;
+  if (own)  // conv2d takes it from 4096 pixels per call; these shapes are smaller
+    EXPECT_TRUE(own(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, c.cin, c.cout, y.data(),
+                    c.act, c.accumulate));
+  else
+    conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
   set_precision(Precision::Fp32);
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
@@ -220,25 +226,33 @@ TEST_P(ConvTest, Same3x3) {
   EXPECT_EQ(run_conv({1, 3, 9, 4, 5, 3, 1, 1}, 19), 0);    // 20 pixels: a 12-column panel and a tail of 8
 }
 
-// Widths that are multiples of 16: on the avx512 path these run the direct kernel that reads the frames itself
-// (conv_internal.h, conv3x3_frames_avx512), on the others the implicit GEMM; the same reference for both.
+// Widths that are multiples of 16: on the avx512 path its own 3x3 kernel runs them (conv_internal.h,
+// conv3x3_frames_avx512, called directly: conv2d takes it from 4096 pixels per call), on the others conv2d's
+// implicit GEMM; the same reference for both.
 TEST_P(ConvTest, Same3x3WidthsOf16) {
-  EXPECT_EQ(run_conv({1, 3, 5, 1, 16, 3, 1, 1}, 40), 0);      // one row: top and bottom taps outside; a 16-pixel tile
-  EXPECT_EQ(run_conv({2, 7, 13, 3, 16, 3, 1, 1}, 41), 0);     // 48 pixels: a tile across rows and a half tile
-  EXPECT_EQ(run_conv({1, 40, 25, 5, 48, 3, 1, 1}, 42), 0);    // two K passes of 20 channels; a partial row panel
-  EXPECT_EQ(run_conv({2, 70, 12, 4, 64, 3, 1, 1}, 43), 0);    // three K passes
-  EXPECT_EQ(run_conv({1, 5, 7, 9, 32, 3, 1, 1}, 44), 0);      // odd height, one tile per row
-  EXPECT_EQ(run_conv({2, 4, 12, 64, 128, 3, 1, 1}, 45), 0);   // 512 tiles: split across threads inside a frame
-  EXPECT_EQ(run_conv({1, 2, 30, 3, 256, 3, 1, 1}, 46), 0);    // interior tiles with no masked lane
+  const auto own = [](ConvCase c) {
+    c.own_3x3 = true;
+    return c;
+  };
+  EXPECT_EQ(run_conv(own({1, 3, 5, 1, 16, 3, 1, 1}), 40), 0);     // one row: top and bottom taps outside; 16 pixels
+  EXPECT_EQ(run_conv(own({2, 7, 13, 3, 16, 3, 1, 1}), 41), 0);    // 48 pixels: a tile across rows and a half tile
+  EXPECT_EQ(run_conv(own({1, 40, 25, 5, 48, 3, 1, 1}), 42), 0);   // two K passes of 20 channels; a partial row panel
+  EXPECT_EQ(run_conv(own({2, 70, 12, 4, 64, 3, 1, 1}), 43), 0);   // three K passes
+  EXPECT_EQ(run_conv(own({1, 5, 7, 9, 32, 3, 1, 1}), 44), 0);     // odd height, one tile per row
+  EXPECT_EQ(run_conv(own({2, 4, 12, 64, 128, 3, 1, 1}), 45), 0);  // 512 tiles: split across threads inside a frame
+  EXPECT_EQ(run_conv(own({1, 2, 30, 3, 256, 3, 1, 1}), 46), 0);   // interior tiles with no masked lane
   for (DType dt : {DType::F16, DType::BF16, DType::I8})
     for (Act act : {Act::None, Act::SiLU})
       for (bool acc : {false, true}) {
-        EXPECT_EQ(run_conv({2, 6, 11, 3, 32, 3, 1, 1, dt, true, act, acc}, 47), 0);
-        EXPECT_EQ(run_conv({1, 45, 7, 2, 16, 3, 1, 1, dt, act == Act::None, act, acc}, 48), 0);  // two K passes
+        EXPECT_EQ(run_conv(own({2, 6, 11, 3, 32, 3, 1, 1, dt, true, act, acc}), 47), 0);
+        ConvCase two_passes{1, 45, 7, 2, 16, 3, 1, 1, dt, act == Act::None, act, acc};
+        two_passes.own_3x3 = !(acc && act != Act::None);  // the activation before the residual: implicit GEMM
+        EXPECT_EQ(run_conv(two_passes, 48), 0);
       }
 }
 
-// On the avx512 path, conv2d runs those shapes through the frame kernel: the same numbers as calling it directly.
+// On the avx512 path, conv2d runs calls of 4096 pixels and more through its own 3x3 kernel: the same numbers as
+// calling it directly.
 TEST_P(ConvTest, FrameKernelIsWhatConv2dRuns) {
   const auto frames = gemm_detail::gemm_path().conv3x3_frames;
   if (GetParam() != KernelPath::Avx512) {
@@ -247,7 +261,7 @@ TEST_P(ConvTest, FrameKernelIsWhatConv2dRuns) {
   }
   ASSERT_NE(frames, nullptr);
   std::mt19937 rng(49);
-  const int64_t n = 2, cin = 40, cout = 14, h = 5, w = 48;
+  const int64_t n = 2, cin = 40, cout = 14, h = 48, w = 48;  // 4608 pixels: conv2d takes it from 4096
   const std::vector<float> x = random_vec(size_t(n * cin * h * w), rng), bias = random_vec(size_t(cout), rng);
   const StoredWeight wt(size_t(cout * cin * 9), DType::F16, rng, size_t(cin * 9));
   std::vector<float> direct(size_t(n * cout * h * w)), via_conv2d(direct.size());
