@@ -47,7 +47,7 @@ struct ConvCase {
   bool accumulate = false;
   bool bf16 = false;  // Precision::Bf16: the reference multiplies the weights and inputs rounded to bfloat16
   bool int8 = false;  // Precision::Int8: the float32 bound plus the quantisation bound of Int8Bound
-  bool own_3x3 = false;  // call the kernel path's own 3x3 kernel (GemmPath::conv3x3_frames) where it has one
+  bool own_3x3 = false;  // call the kernel path's own 3x3 kernel (GemmPath::conv3x3_window) where it has one
 };
 
 // Precision::Int8 quantises each weight row and each input column (a pixel's receptive field) per K group with the
@@ -87,7 +87,7 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
   set_precision(precision_of(c.bf16, c.int8));
-  const auto own = c.own_3x3 ? gemm_detail::gemm_path().conv3x3_frames : nullptr;
+  const auto own = c.own_3x3 ? gemm_detail::gemm_path().conv3x3_window : nullptr;
   if (own)  // conv2d takes it from 4096 pixels per call; these shapes are smaller
     EXPECT_TRUE(own(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, c.cin, c.cout, y.data(),
                     c.act, c.accumulate));
@@ -227,7 +227,7 @@ TEST_P(ConvTest, Same3x3) {
 }
 
 // Widths that are multiples of 16: on the avx512 path its own 3x3 kernel runs them (conv_internal.h,
-// conv3x3_frames_avx512, called directly: conv2d takes it from 4096 pixels per call), on the others conv2d's
+// conv3x3_window_avx512, called directly: conv2d takes it from 4096 pixels per call), on the others conv2d's
 // implicit GEMM; the same reference for both.
 TEST_P(ConvTest, Same3x3WidthsOf16) {
   const auto own = [](ConvCase c) {
@@ -253,26 +253,26 @@ TEST_P(ConvTest, Same3x3WidthsOf16) {
 
 // On the avx512 path, conv2d runs calls of 4096 pixels and more through its own 3x3 kernel: the same numbers as
 // calling it directly.
-TEST_P(ConvTest, FrameKernelIsWhatConv2dRuns) {
-  const auto frames = gemm_detail::gemm_path().conv3x3_frames;
+TEST_P(ConvTest, WindowKernelIsWhatConv2dRuns) {
+  const auto window = gemm_detail::gemm_path().conv3x3_window;
   if (GetParam() != KernelPath::Avx512) {
-    EXPECT_EQ(frames, nullptr);
+    EXPECT_EQ(window, nullptr);
     return;
   }
-  ASSERT_NE(frames, nullptr);
+  ASSERT_NE(window, nullptr);
   std::mt19937 rng(49);
   const int64_t n = 2, cin = 40, cout = 14, h = 48, w = 48;  // 4608 pixels: conv2d takes it from 4096
   const std::vector<float> x = random_vec(size_t(n * cin * h * w), rng), bias = random_vec(size_t(cout), rng);
   const StoredWeight wt(size_t(cout * cin * 9), DType::F16, rng, size_t(cin * 9));
   std::vector<float> direct(size_t(n * cout * h * w)), via_conv2d(direct.size());
-  ASSERT_TRUE(frames(x.data(), n, h, w, wt.operand(cin * 9), bias.data(), cin, cout, direct.data(), Act::SiLU, false));
+  ASSERT_TRUE(window(x.data(), n, h, w, wt.operand(cin * 9), bias.data(), cin, cout, direct.data(), Act::SiLU, false));
   conv2d(x.data(), n, h, w, wt.operand(cin * 9), bias.data(), Conv2dGeom{cin, cout, 3, 3, 1, 1, 1, 1},
          via_conv2d.data(), Act::SiLU);
   EXPECT_EQ(direct, via_conv2d);
   // What it leaves to the implicit GEMM: widths that are not multiples of 16, an activation before a residual add
   // over several K passes.
-  EXPECT_FALSE(frames(x.data(), n, h, 40, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::None, false));
-  EXPECT_FALSE(frames(x.data(), n, h, w, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::SiLU, true));
+  EXPECT_FALSE(window(x.data(), n, h, 40, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::None, false));
+  EXPECT_FALSE(window(x.data(), n, h, w, wt.operand(cin * 9), nullptr, cin, cout, direct.data(), Act::SiLU, true));
 }
 
 TEST_P(ConvTest, Strided3x3) {

@@ -1,7 +1,7 @@
 // Convolutions as implicit GEMMs on the SGEMM engine: out[cout, oh*ow] = W[cout, cin*kh*kw] · col[cin*kh*kw, oh*ow]
 // per frame, where the B panels of col are packed straight from the input (never a whole im2col); frames are the
 // engine's column segments, so the weight panels are packed once per column block, not once per frame. A kernel path
-// may run float32 3x3 stride-1 convolutions its own way (GemmPath::conv3x3_frames: AVX-512, from a per-tile window
+// may run float32 3x3 stride-1 convolutions its own way (GemmPath::conv3x3_window: AVX-512, from a per-tile window
 // of the input instead of an im2col panel), and 3x3 stride-1 ones may take Winograd (winograd.h).
 #include "core/kernels/conv.h"
 
@@ -238,9 +238,9 @@ void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weig
   // The path's own 3x3 kernel packs all filters once per call: from 4096 pixels per call on (under it, e.g. the
   // VAE decoder's 512 channels on one 32x32 frame, it ran 0.93x the implicit GEMM, whose filter blocks are packed
   // per column block). It returns false for shapes it does not take.
-  const auto frames = gemm_detail::gemm_path().conv3x3_frames;
-  if (same_3x3(g) && frames && precision() == Precision::Fp32 && n * h * w >= 4096 &&
-      frames(x, n, h, w, weight, bias, g.cin, g.cout, y, act, accumulate))
+  const auto window = gemm_detail::gemm_path().conv3x3_window;
+  if (same_3x3(g) && window && precision() == Precision::Fp32 && n * h * w >= 4096 &&
+      window(x, n, h, w, weight, bias, g.cin, g.cout, y, act, accumulate))
     return;
   const int64_t K = g.cin * g.kh * g.kw;
   Operand wa = weight;  // [cout, cin*kh*kw] row-major

@@ -63,9 +63,9 @@ struct GemmPath {
                             int nr, float* dst) = nullptr;
   int64_t (*pack_a_temporal)(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
                              int64_t len, float* dst) = nullptr;
-  // Float32 3x3 stride-1 pad-1 convolution straight from the frames (conv_internal.h; null, or false returned:
+  // Float32 3x3 stride-1 pad-1 convolution from a per-tile input window (conv_internal.h; null, or false returned:
   // the implicit GEMM above).
-  bool (*conv3x3_frames)(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
+  bool (*conv3x3_window)(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
                          int64_t cin, int64_t cout, float* y, Act act, bool accumulate) = nullptr;
   // Precision::Bf16 with a native bfloat16 dot product (null: emulated, the float32 panels are rounded in place).
   // to_bf16_pairs rewrites a packed float32 panel of `width` (MR or NR) columns and kc rows in place as ceil(kc/2)

@@ -1,6 +1,7 @@
 // AVX-512 convolution kernels: implicit-im2col packing (each 32-column row of a B panel is two masked loads of the
 // shifted frame: the validity bits of the tap are the load masks, padding costs nothing and nothing outside the
-// frame is read), and the direct 3x3 convolution whose micro-kernel makes those loads itself (no panel).
+// frame is read), and the direct 3x3 convolution that multiplies from a small window of the input per output tile
+// instead of an im2col panel.
 #include <omp.h>
 
 #include <algorithm>
@@ -110,7 +111,7 @@ void window_tile(const float* win, int64_t nc, const float* a, float* sum) {
 
 }  // namespace
 
-bool conv3x3_frames_avx512(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
+bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
                            int64_t cin, int64_t cout, float* y, Act act, bool accumulate) {
   using namespace gemm_detail;
   const int64_t K = cin * 9;
