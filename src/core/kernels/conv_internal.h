@@ -63,5 +63,9 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
 // packs the rest).
 int64_t pack_a_temporal6_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0, int64_t len,
                               float* dst);
+// The same for the 12 rows of an AVX-512 panel (dst[k*12 + i]), as two runs of the AVX2 packer (AVX-512 CPUs have
+// AVX2; the weights are read once either way).
+int64_t pack_a_temporal12_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
+                               int64_t len, float* dst);
 
 }  // namespace egopd::conv_detail

@@ -74,7 +74,7 @@ const GemmPath& gemm_path(KernelPath which) {
   }();
   static const GemmPath avx512 = [] {
     GemmPath p = with_blocking({kMrAvx512, kNrAvx512, microkernel_avx512, true, pack_a_avx512, pack_b_avx512,
-                                pack_im2col_shift_avx512, nullptr},
+                                pack_im2col_shift_avx512, pack_a_temporal12_avx2},
                                true);
     p.conv3x3_window = conv3x3_window_avx512;
     if (cpu_info().avx512_bf16) p.to_bf16_pairs = to_bf16_pairs_avx512, p.micro_bf16 = microkernel_avx512_bf16;

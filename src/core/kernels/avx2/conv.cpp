@@ -43,8 +43,9 @@ namespace {
 using pack_avx2::load8;
 using pack_avx2::transpose8;
 
+// dst[k*ld + i] = W[m0 + i, c0 + k, tap] for i < 6 and k < len / 8 * 8 (returned).
 __attribute__((always_inline)) inline int64_t temporal6(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap,
-                                                        int64_t c0, int64_t len, float* dst) {
+                                                        int64_t c0, int64_t len, int64_t ld, float* dst) {
   // Elements e = tap + 3j (j < 8) of 24 consecutive ones: 3j mod 8 is a permutation, so lane (tap + 3j) mod 8
   // of exactly one of the three loaded vectors holds element j: blend the three, then permute.
   alignas(32) int32_t from1[8], from2[8], perm[8];
@@ -68,7 +69,7 @@ __attribute__((always_inline)) inline int64_t temporal6(const void* w, DType dt,
     r[6] = r[7] = _mm256_setzero_ps();
     transpose8(r);
     for (int q = 0; q < 8; ++q) {  // column q: lanes 0-5 are the 6 rows
-      float* d = dst + (k + q) * 6;
+      float* d = dst + (k + q) * ld;
       _mm_storeu_ps(d, _mm256_castps256_ps128(r[q]));
       _mm_storel_pi(reinterpret_cast<__m64*>(d + 4), _mm256_extractf128_ps(r[q], 1));
     }
@@ -80,9 +81,21 @@ __attribute__((always_inline)) inline int64_t temporal6(const void* w, DType dt,
 
 int64_t pack_a_temporal6_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0, int64_t len,
                               float* dst) {
-  if (dt == DType::F32) return temporal6(w, DType::F32, cin, m0, tap, c0, len, dst);
-  if (dt == DType::F16) return temporal6(w, DType::F16, cin, m0, tap, c0, len, dst);
-  if (dt == DType::BF16) return temporal6(w, DType::BF16, cin, m0, tap, c0, len, dst);
+  if (dt == DType::F32) return temporal6(w, DType::F32, cin, m0, tap, c0, len, 6, dst);
+  if (dt == DType::F16) return temporal6(w, DType::F16, cin, m0, tap, c0, len, 6, dst);
+  if (dt == DType::BF16) return temporal6(w, DType::BF16, cin, m0, tap, c0, len, 6, dst);
+  return 0;
+}
+
+int64_t pack_a_temporal12_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
+                               int64_t len, float* dst) {
+  const auto rows12 = [&](DType d) {  // d a constant at each call: load8 specialised, as above
+    temporal6(w, d, cin, m0, tap, c0, len, 12, dst);  // rows 0-5
+    return temporal6(w, d, cin, m0 + 6, tap, c0, len, 12, dst + 6);
+  };
+  if (dt == DType::F32) return rows12(DType::F32);
+  if (dt == DType::F16) return rows12(DType::F16);
+  if (dt == DType::BF16) return rows12(DType::BF16);
   return 0;
 }
 
