@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <unistd.h>
 
+#include <utility>
+
 #include <cmath>
 
 #include "cli/commands.h"
@@ -75,25 +77,26 @@ int bench_unet(const Args& a) {
   }
   UNetConditioning cond = unet.prepare(ehs, pifr ? &text : nullptr);
 
-  for (int64_t e = 0; e < warmup; ++e) {
+  // One evaluation: wall and CPU seconds.
+  const auto evaluate = [&] {
     auto t0 = std::chrono::steady_clock::now();
+    const double c0 = process_cpu_seconds();
     Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
+    const double cpu_s = process_cpu_seconds() - c0, wall = seconds_since(t0);
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
+    return std::make_pair(wall, cpu_s);
+  };
+  for (int64_t e = 0; e < warmup; ++e)
     std::fprintf(stderr, "bench unet: warm-up %lld/%lld %.2f s (not timed)\n", (long long)(e + 1), (long long)warmup,
-                 seconds_since(t0));
-  }
+                 evaluate().first);
   StageTimes stages;
   unet.set_profile(&stages);
   std::vector<double> secs, cpu;
   for (int64_t e = 0; e < evals; ++e) {
-    auto t0 = std::chrono::steady_clock::now();
-    const double c0 = process_cpu_seconds();
-    Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
-    cpu.push_back(process_cpu_seconds() - c0);
-    secs.push_back(seconds_since(t0));
-    if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
-    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals,
-                 secs.back());
+    const auto [wall, cpu_s] = evaluate();
+    secs.push_back(wall);
+    cpu.push_back(cpu_s);
+    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals, wall);
   }
   std::sort(secs.begin(), secs.end());
   std::sort(cpu.begin(), cpu.end());

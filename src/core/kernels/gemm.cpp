@@ -61,7 +61,6 @@ void round_to_bf16(float* p, int64_t n) {
 
 namespace {
 
-constexpr double kSerialFlops = 4e5;  // below this a parallel region costs more than it saves
 constexpr int64_t kInt8GroupsPerPass = 4;  // int8 B micro-panel of 4 x 512 x 32 bytes: 64 KiB, in L2
 // Bytes of an int8 B block (16 MiB: the U-Net ran ~5% faster than with 2 MiB on the AMD EPYC "Turin-like" CPU);
 // EGOPD_GEMM_I8_BLOCK_MB overrides it for tuning experiments.

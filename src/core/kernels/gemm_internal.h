@@ -17,6 +17,9 @@ struct ShiftGeom;
 
 namespace egopd::gemm_detail {
 
+// Flops of a kernel call below which it runs on the calling thread (a parallel region costs more than it saves).
+constexpr double kSerialFlops = 4e5;
+
 // Micro-tile rows (MR) and columns (NR) of each path; packed panels are MR rows of A / NR columns of B wide.
 constexpr int kMrPortable = 6, kNrPortable = 16;
 constexpr int kMrAvx2 = 6, kNrAvx2 = 16;     // 12 ymm accumulators

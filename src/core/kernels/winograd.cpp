@@ -88,7 +88,6 @@ namespace {
 
 using wino_detail::PanelGeom;
 
-constexpr double kSerialFlops = 4e5;  // direct-equivalent flops below which one thread runs
 
 // The calling thread's scratch, 64-byte aligned (the B panels the micro-kernels load must be), grown on demand.
 float* thread_scratch(size_t floats) {
@@ -256,7 +255,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
 
   const double flops = 18.0 * double(cout) * double(cin) * double(n * h * w);
   int threads = omp_in_parallel() ? 1 : num_threads();
-  if (flops < kSerialFlops) threads = 1;
+  if (flops < gemm_detail::kSerialFlops) threads = 1;  // direct-equivalent flops
 #pragma omp parallel num_threads(threads) if (threads > 1)
   if (blk.tiles_outside) {
     for (int64_t tbi = 0; tbi < ntb; ++tbi) {

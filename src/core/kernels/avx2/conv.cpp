@@ -77,26 +77,31 @@ __attribute__((always_inline)) inline int64_t temporal6(const void* w, DType dt,
   return n8;
 }
 
+// A panel of 6 * kRuns rows as kRuns runs of temporal6; the dtype is a constant at each call (load8 specialised).
+template <int kRuns>
+int64_t temporal_panel(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0, int64_t len,
+                       float* dst) {
+  const auto runs = [&](DType d) {
+    int64_t done = 0;
+    for (int r = 0; r < kRuns; ++r) done = temporal6(w, d, cin, m0 + 6 * r, tap, c0, len, 6 * kRuns, dst + 6 * r);
+    return done;
+  };
+  if (dt == DType::F32) return runs(DType::F32);
+  if (dt == DType::F16) return runs(DType::F16);
+  if (dt == DType::BF16) return runs(DType::BF16);
+  return 0;
+}
+
 }  // namespace
 
 int64_t pack_a_temporal6_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0, int64_t len,
                               float* dst) {
-  if (dt == DType::F32) return temporal6(w, DType::F32, cin, m0, tap, c0, len, 6, dst);
-  if (dt == DType::F16) return temporal6(w, DType::F16, cin, m0, tap, c0, len, 6, dst);
-  if (dt == DType::BF16) return temporal6(w, DType::BF16, cin, m0, tap, c0, len, 6, dst);
-  return 0;
+  return temporal_panel<1>(w, dt, cin, m0, tap, c0, len, dst);
 }
 
 int64_t pack_a_temporal12_avx2(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
                                int64_t len, float* dst) {
-  const auto rows12 = [&](DType d) {  // d a constant at each call: load8 specialised, as above
-    temporal6(w, d, cin, m0, tap, c0, len, 12, dst);  // rows 0-5
-    return temporal6(w, d, cin, m0 + 6, tap, c0, len, 12, dst + 6);
-  };
-  if (dt == DType::F32) return rows12(DType::F32);
-  if (dt == DType::F16) return rows12(DType::F16);
-  if (dt == DType::BF16) return rows12(DType::BF16);
-  return 0;
+  return temporal_panel<2>(w, dt, cin, m0, tap, c0, len, dst);
 }
 
 }  // namespace egopd::conv_detail

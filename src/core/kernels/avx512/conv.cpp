@@ -126,7 +126,7 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
   const int64_t plane = h * w, tpf = (plane + NR - 1) / NR, tiles = n * tpf;
   const int64_t block_tiles = std::max<int64_t>(1, kBlockCBytes / (mpanels * MR * NR * 4));
   int threads = omp_in_parallel() ? 1 : num_threads();
-  if (2.0 * double(n * plane) * double(cout * K) < 4e5) threads = 1;
+  if (2.0 * double(n * plane) * double(cout * K) < kSerialFlops) threads = 1;
   threads = int(std::min<int64_t>(threads, std::max<int64_t>(tiles / block_tiles, 1)));
 
   Operand wa = weight;  // [cout, cin*9] row-major
