@@ -1,6 +1,7 @@
 // Attention, GEGLU, GroupNorm+SiLU and LayerNorm at the SVD U-Net's shapes (16 frames, 32x32 latent).
 // Counters: GFLOP/s for attention (4*lq*lk*dh per head), GB/s (bytes read + written once) for the rest.
-// The last argument selects the path: 1 = AVX2, 0 = portable; compare ratios within one run.
+// The last argument selects the kernel path: 2 = AVX-512, 1 = AVX2, 0 = portable (paths the CPU lacks are
+// skipped); compare ratios within one run. %peak is against the measured FMA peak of the path (fma_peak.h).
 // The machine is shared, so each rate is reported twice: per wall-clock second ("GFLOP/s", "GB/s") and per
 // second of process CPU time summed over threads ("GFLOP/s/core", "GB/s/core"), which load from others disturbs
 // less (threads spinning at a barrier count as busy, so it errs low). %peak/core compares the per-core rate with
@@ -19,12 +20,11 @@
 #include "core/cpu.h"
 #include "core/kernels/attention.h"
 #include "core/kernels/elementwise.h"
+#include "core/kernels/fma_peak.h"
 #include "core/kernels/norm.h"
 #include "core/threading.h"
 
 namespace {
-
-constexpr double kPeakGflops = 196.0;  // this machine's FMA peak (2 cores)
 
 std::vector<float> random_vector(size_t n, uint32_t seed) {
   std::mt19937 rng(seed);
@@ -59,6 +59,14 @@ double run_measured(benchmark::State& state, const char* name, double amount, Fn
   return amount * iters / cpu;
 }
 
+// %peak (wall-clock rate) and %peak/core (CPU-time rate) against the measured peak of the path in use.
+void set_peak_counters(benchmark::State& state, double per_core_gflops) {
+  const int threads = egopd::num_threads();
+  const double peak = egopd::measured_peak_gflops(egopd::kernel_path(), threads);
+  state.counters["%peak"] = 100.0 * state.counters["GFLOP/s"] / peak;
+  state.counters["%peak/core"] = 100.0 * per_core_gflops / (peak / threads);
+}
+
 void set_path(benchmark::State& state, int arg_index) {
   const auto path = egopd::KernelPath(state.range(arg_index));
   if (!egopd::kernel_path_supported(path)) return state.SkipWithError("kernel path not supported by this CPU");
@@ -86,19 +94,24 @@ void BM_SelfAttention(benchmark::State& state) {
     egopd::attention(a);
     benchmark::DoNotOptimize(out.data());
   });
-  state.counters["%peak"] = 100.0 * state.counters["GFLOP/s"] / kPeakGflops;
-  state.counters["%peak/core"] = 100.0 * per_core / (kPeakGflops / egopd::physical_cores());
+  set_peak_counters(state, per_core);
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_SelfAttention)
-    ->ArgNames({"batch", "tokens", "heads", "dh", "avx2"})
+    ->ArgNames({"batch", "tokens", "heads", "dh", "path"})
     ->Args({16, 1024, 5, 64, 1})   // spatial, 32x32 latent
+    ->Args({16, 1024, 5, 64, 2})
     ->Args({2, 1024, 5, 64, 0})    // portable reference (fewer frames: it is slow)
     ->Args({16, 256, 10, 64, 1})   // 16x16
+    ->Args({16, 256, 10, 64, 2})
     ->Args({16, 64, 20, 64, 1})    // 8x8
+    ->Args({16, 64, 20, 64, 2})
     ->Args({16, 16, 20, 64, 1})    // 4x4
+    ->Args({16, 16, 20, 64, 2})
     ->Args({1024, 16, 5, 64, 1})   // 1024 contiguous 16-row sequences (temporal layout: see below)
+    ->Args({1024, 16, 5, 64, 2})
     ->Args({1, 257, 16, 80, 1})    // CLIP ViT-H
+    ->Args({1, 257, 16, 80, 2})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 
@@ -121,14 +134,16 @@ void BM_TemporalAttention(benchmark::State& state) {
     egopd::attention(a);
     benchmark::DoNotOptimize(out.data());
   });
-  state.counters["%peak/core"] = 100.0 * per_core / (kPeakGflops / egopd::physical_cores());
+  set_peak_counters(state, per_core);
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_TemporalAttention)
-    ->ArgNames({"frames", "tokens", "heads", "dh", "avx2"})
+    ->ArgNames({"frames", "tokens", "heads", "dh", "path"})
     ->Args({16, 1024, 5, 64, 1})
+    ->Args({16, 1024, 5, 64, 2})
     ->Args({16, 1024, 5, 64, 0})
     ->Args({16, 256, 10, 64, 1})
+    ->Args({16, 256, 10, 64, 2})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 
@@ -145,10 +160,12 @@ void BM_Geglu(benchmark::State& state) {
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_Geglu)
-    ->ArgNames({"rows", "d", "avx2"})
+    ->ArgNames({"rows", "d", "path"})
     ->Args({16384, 1280, 1})  // U-Net FF at 32x32 (p is [16384, 2560])
+    ->Args({16384, 1280, 2})
     ->Args({16384, 1280, 0})
     ->Args({128, 1280, 1})    // cache-resident: compute cost of GELU alone
+    ->Args({128, 1280, 2})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 
@@ -167,9 +184,11 @@ void BM_GroupNormSilu(benchmark::State& state) {
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
 BENCHMARK(BM_GroupNormSilu)
-    ->ArgNames({"batch", "frames", "c", "s", "groups", "avx2"})
+    ->ArgNames({"batch", "frames", "c", "s", "groups", "path"})
     ->Args({16, 1, 320, 1024, 32, 1})  // per-frame (spatial ResnetBlock2D)
+    ->Args({16, 1, 320, 1024, 32, 2})
     ->Args({1, 16, 320, 1024, 32, 1})  // video (temporal ResBlock)
+    ->Args({1, 16, 320, 1024, 32, 2})
     ->Args({1, 16, 320, 1024, 32, 0})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
@@ -186,14 +205,16 @@ void BM_LayerNorm(benchmark::State& state) {
   });
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
 }
-BENCHMARK(BM_LayerNorm)->ArgNames({"rows", "c", "avx2"})->Args({16384, 320, 1})->Args({16384, 320, 0})
+BENCHMARK(BM_LayerNorm)->ArgNames({"rows", "c", "path"})->Args({16384, 320, 2})->Args({16384, 320, 1})->Args({16384, 320, 0})
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
 
 }  // namespace
 
 int main(int argc, char** argv) {
   egopd::set_num_threads(0);  // EGOPD_THREADS or all physical cores
-  benchmark::AddCustomContext("peak_gflops", std::to_string(kPeakGflops));
+  for (egopd::KernelPath path : egopd::supported_kernel_paths())
+    benchmark::AddCustomContext(std::string("peak_gflops_") + egopd::kernel_path_name(path),
+                                std::to_string(egopd::measured_peak_gflops(path, egopd::num_threads())));
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

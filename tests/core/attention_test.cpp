@@ -110,6 +110,13 @@ TEST(Attention, TemporalSixteenFrames) { check_both_paths({37, 2, 16, 16, 64}); 
 TEST(Attention, OneFrame) { check_both_paths({5, 2, 1, 1, 64}); }
 TEST(Attention, FusedQkvBuffer) { check_both_paths({2, 2, 70, 70, 16, false, true}); }
 TEST(Attention, FusedQkvBufferCausal) { check_both_paths({1, 3, 33, 33, 8, true, true}); }
+// The AVX-512 kernel's blocks: 12-key score rows (48-key tiles), 32- and 16-query columns, 64-channel P.V blocks
+// with a masked last vector.
+TEST(Attention, KeyRowTailsOfTwelve) { check_both_paths({1, 2, 45, 59, 64}); }   // 48 + 11 keys; 32 + 13 queries
+TEST(Attention, SixteenQueryColumns) { check_both_paths({3, 1, 16, 21, 32}); }  // one 16-column block
+TEST(Attention, HeadDimThreeVectors) { check_both_paths({1, 2, 33, 34, 48}); }
+TEST(Attention, HeadDimOneFullBlockAndMaskedTail) { check_both_paths({1, 1, 19, 26, 97}); }  // 64 + 33
+TEST(Attention, CausalThirtyTwoColumns) { check_both_paths({1, 2, 97, 97, 16, true}); }
 TEST(Attention, LargeScoresAreStable) { check_both_paths({1, 2, 40, 90, 16, false, false, 20.0f}); }
 
 TEST(Attention, RejectsCausalWithDifferentLengths) {

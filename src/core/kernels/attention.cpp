@@ -18,12 +18,18 @@ void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, in
                 float scale, float* p, float* out);
 }  // namespace neon
 #else
-namespace avx2 {  // avx2/attention.cpp
+// The blocked x86 kernels, one interface: avx2/attention.cpp and avx512/attention.cpp.
+namespace avx2 {
 int64_t attention_tile_queries();
 int64_t attention_tile_workspace(int64_t dh);
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
 void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq);
 }  // namespace avx2
+namespace avx512 {
+int64_t attention_tile_queries();
+int64_t attention_tile_workspace(int64_t dh);
+void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
+}  // namespace avx512
 #endif
 
 namespace {
@@ -60,16 +66,22 @@ void attend_row(const float* q, const float* k, int64_t k_ld, const float* v, in
 }
 
 #if !defined(__aarch64__)
-// Blocked AVX2 kernel: units of (batch, head, query tile), each thread with its own workspace.
-void attention_avx2(const AttentionArgs& a) {
-  const int64_t kTile = avx2::attention_tile_queries();
+struct TileKernel {
+  int64_t (*tile_queries)();
+  int64_t (*workspace)(int64_t dh);
+  void (*tile)(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work);
+};
+
+// Blocked kernel: units of (batch, head, query tile), each thread with its own workspace.
+void attention_blocked(const AttentionArgs& a, const TileKernel& kern) {
+  const int64_t kTile = kern.tile_queries();
   const int64_t tiles = (a.lq + kTile - 1) / kTile;
   const int64_t units = a.batch * a.heads * tiles;
   const bool prefetch = a.lq <= kTile && a.lk <= kTile;  // short sequences: latency-bound without it
   const bool par = !omp_in_parallel() && units > 1 && a.lq * a.lk * a.dh * a.batch * a.heads >= (1 << 16);
 #pragma omp parallel if (par)
   {
-    const std::shared_ptr<float[]> work = alloc_floats(static_cast<size_t>(avx2::attention_tile_workspace(a.dh)));
+    const std::shared_ptr<float[]> work = alloc_floats(static_cast<size_t>(kern.workspace(a.dh)));
     // Short units run in chunks so that the prefetched next unit is usually this thread's own.
     const int64_t chunk = prefetch ? 16 : 1;
 #pragma omp for schedule(dynamic, chunk)
@@ -80,7 +92,7 @@ void attention_avx2(const AttentionArgs& a) {
         const int64_t hn = (u + 1) % a.heads, bn = (u + 1) / a.heads;
         avx2::prefetch_unit(a, bn, hn, 0, a.lq);
       }
-      avx2::attention_tile(a, b, h, q0, std::min(kTile, a.lq - q0), work.get());
+      kern.tile(a, b, h, q0, std::min(kTile, a.lq - q0), work.get());
     }
   }
 }
@@ -94,7 +106,10 @@ void attention(const AttentionArgs& a) {
 #if defined(__aarch64__)
   const auto row_fn = use_simd() ? neon::attend_row : attend_row;
 #else
-  if (use_simd()) return attention_avx2(a);
+  if (kernel_path() == KernelPath::Avx512)
+    return attention_blocked(a, {avx512::attention_tile_queries, avx512::attention_tile_workspace, avx512::attention_tile});
+  if (use_simd())
+    return attention_blocked(a, {avx2::attention_tile_queries, avx2::attention_tile_workspace, avx2::attention_tile});
   const auto row_fn = attend_row;
 #endif
   const int64_t units = a.batch * a.heads * a.lq;

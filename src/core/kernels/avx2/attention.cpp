@@ -1,4 +1,5 @@
-// AVX2/FMA attention for one (batch, head, query tile): a blocked two-GEMM kernel with an online softmax.
+// AVX2/FMA attention for one (batch, head, query tile): the blocked two-GEMM flow of attention_tile.h with an
+// online softmax.
 //
 // Scores are computed transposed, S^T[key, query] = K · (c Q)^T with c = scale * log2(e), so that
 //  * K rows are read straight from the source (broadcast per element; no key packing or transposition),
@@ -11,6 +12,8 @@
 #include <immintrin.h>
 
 #include "core/kernels/attention.h"
+#include "core/kernels/attention_tile.h"
+#include "core/kernels/avx2/transpose.h"
 #include "core/kernels/avx2/vec_math.h"
 
 namespace egopd::avx2 {
@@ -23,8 +26,6 @@ constexpr int64_t kBQ = 64;  // queries per tile (4 column blocks of 16)
 constexpr int64_t kBK = 48;  // keys per tile (8 row blocks of 6)
 constexpr int kMR = 6;       // micro-tile rows (keys for S^T, queries for P·V)
 
-static inline int64_t round_up8(int64_t n) { return (n + 7) / 8 * 8; }
-static inline int64_t min64(int64_t a, int64_t b) { return a < b ? a : b; }
 
 // S^T[r][0..15] = sum_d K[r][d] * Qt[d][0..15] for R key rows; qt points at Qt[0][i0] (stride kBQ).
 // Used for tail blocks (R < 6). The accumulators start from memory: GCC keeps a zero-initialised array there.
@@ -94,34 +95,12 @@ static void score_rows(const float* qt, int64_t dh, const float* k, int64_t k_ld
   }
 }
 
-// dst[d][i] = c * src[i][d] for an 8x8 block (src rows at stride ld, dst rows at stride kBQ).
-static inline void transpose8_scaled(const float* src, int64_t ld, __m256 c, float* dst) {
-  __m256 r0 = _mm256_loadu_ps(src), r1 = _mm256_loadu_ps(src + ld), r2 = _mm256_loadu_ps(src + 2 * ld),
-         r3 = _mm256_loadu_ps(src + 3 * ld), r4 = _mm256_loadu_ps(src + 4 * ld), r5 = _mm256_loadu_ps(src + 5 * ld),
-         r6 = _mm256_loadu_ps(src + 6 * ld), r7 = _mm256_loadu_ps(src + 7 * ld);
-  const __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1), t2 = _mm256_unpacklo_ps(r2, r3),
-               t3 = _mm256_unpackhi_ps(r2, r3), t4 = _mm256_unpacklo_ps(r4, r5), t5 = _mm256_unpackhi_ps(r4, r5),
-               t6 = _mm256_unpacklo_ps(r6, r7), t7 = _mm256_unpackhi_ps(r6, r7);
-  const __m256 u0 = _mm256_shuffle_ps(t0, t2, 0x44), u1 = _mm256_shuffle_ps(t0, t2, 0xEE),
-               u2 = _mm256_shuffle_ps(t1, t3, 0x44), u3 = _mm256_shuffle_ps(t1, t3, 0xEE),
-               u4 = _mm256_shuffle_ps(t4, t6, 0x44), u5 = _mm256_shuffle_ps(t4, t6, 0xEE),
-               u6 = _mm256_shuffle_ps(t5, t7, 0x44), u7 = _mm256_shuffle_ps(t5, t7, 0xEE);
-  r0 = _mm256_permute2f128_ps(u0, u4, 0x20), r1 = _mm256_permute2f128_ps(u1, u5, 0x20);
-  r2 = _mm256_permute2f128_ps(u2, u6, 0x20), r3 = _mm256_permute2f128_ps(u3, u7, 0x20);
-  r4 = _mm256_permute2f128_ps(u0, u4, 0x31), r5 = _mm256_permute2f128_ps(u1, u5, 0x31);
-  r6 = _mm256_permute2f128_ps(u2, u6, 0x31), r7 = _mm256_permute2f128_ps(u3, u7, 0x31);
-  _mm256_storeu_ps(dst, _mm256_mul_ps(r0, c)), _mm256_storeu_ps(dst + kBQ, _mm256_mul_ps(r1, c));
-  _mm256_storeu_ps(dst + 2 * kBQ, _mm256_mul_ps(r2, c)), _mm256_storeu_ps(dst + 3 * kBQ, _mm256_mul_ps(r3, c));
-  _mm256_storeu_ps(dst + 4 * kBQ, _mm256_mul_ps(r4, c)), _mm256_storeu_ps(dst + 5 * kBQ, _mm256_mul_ps(r5, c));
-  _mm256_storeu_ps(dst + 6 * kBQ, _mm256_mul_ps(r6, c)), _mm256_storeu_ps(dst + 7 * kBQ, _mm256_mul_ps(r7, c));
-}
-
 // Qt[d][i] = c * q[i][d] for i < nq (zero for nq <= i < ncol): [nq, dh] (stride q_ld) -> [dh, kBQ].
 static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
   const int64_t nq8 = nq / 8 * 8, dh8 = dh / 8 * 8;
   const __m256 vc = _mm256_set1_ps(c);
   for (int64_t i = 0; i < nq8; i += 8)
-    for (int64_t d = 0; d < dh8; d += 8) transpose8_scaled(q + i * q_ld + d, q_ld, vc, qt + d * kBQ + i);
+    for (int64_t d = 0; d < dh8; d += 8) transpose8_scaled(q + i * q_ld + d, q_ld, vc, qt + d * kBQ + i, kBQ);
   for (int64_t d = 0; d < dh; ++d) {
     float* row = qt + d * kBQ;
     for (int64_t i = d < dh8 ? nq8 : 0; i < nq; ++i) row[i] = q[i * q_ld + d] * c;
@@ -179,6 +158,57 @@ static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, i
   }
 }
 
+// Online softmax of one key tile down each column (8 queries per vector): st holds S^T on entry and P^T on exit;
+// m (running max, log2 domain) and l (running sum) are updated; corr receives each column's rescale factor.
+static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
+  for (int64_t i = 0; i < ncol; i += 8) {
+    __m256 mx = _mm256_set1_ps(-__builtin_inff());
+    for (int64_t j = 0; j < nk; ++j) mx = _mm256_max_ps(mx, _mm256_loadu_ps(st + j * kBQ + i));
+    const __m256 m_old = _mm256_loadu_ps(m + i);
+    const __m256 m_new = _mm256_max_ps(m_old, mx);
+    // A column with no visible key yet keeps m = -inf; subtract 0 instead so exp2(-inf - 0) = 0, not NaN.
+    const __m256 m_sub = _mm256_blendv_ps(m_new, _mm256_setzero_ps(),
+                                          _mm256_cmp_ps(m_new, _mm256_set1_ps(-__builtin_inff()), _CMP_EQ_OQ));
+    const __m256 cr = exp2_ps(_mm256_sub_ps(m_old, m_sub));
+    __m256 sum = _mm256_setzero_ps();
+    for (int64_t j = 0; j < nk; ++j) {
+      const __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_sub));
+      _mm256_storeu_ps(st + j * kBQ + i, p);
+      sum = _mm256_add_ps(sum, p);
+    }
+    _mm256_storeu_ps(m + i, m_new);
+    _mm256_storeu_ps(l + i, _mm256_fmadd_ps(_mm256_loadu_ps(l + i), cr, sum));
+    _mm256_storeu_ps(corr + i, cr);
+  }
+}
+
+struct Kernel {
+  static constexpr int64_t kBQ = avx2::kBQ, kBK = avx2::kBK, kPad = 8;
+  static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
+    avx2::pack_queries(q, q_ld, nq, ncol, dh, c, qt);
+  }
+  static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
+    for (int64_t i0 = 0; i0 < ncol; i0 += 16) score_rows(qt + i0, dh, k, k_ld, nk, st + i0);
+  }
+  static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
+    avx2::softmax_columns(st, nk, ncol, m, l, corr);
+  }
+  static void scale_row(float* o, int64_t n, float f) {
+    const __m256 vf = _mm256_set1_ps(f);
+    for (int64_t d = 0; d < n; d += 8) _mm256_storeu_ps(o + d, _mm256_mul_ps(_mm256_loadu_ps(o + d), vf));
+  }
+  static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, int64_t dh, int64_t rows, float* o,
+                      int64_t o_ld) {
+    avx2::pv_rows(pt, nk, v, v_ld, dh, rows, o, o_ld);
+  }
+  static void store_row(float* dst, const float* o, int64_t dh, float f) {
+    const __m256 vf = _mm256_set1_ps(f);
+    int64_t d = 0;
+    for (; d + 8 <= dh; d += 8) _mm256_storeu_ps(dst + d, _mm256_mul_ps(_mm256_loadu_ps(o + d), vf));
+    if (d < dh) _mm256_maskstore_ps(dst + d, tail_mask(dh - d), _mm256_mul_ps(_mm256_loadu_ps(o + d), vf));
+  }
+};
+
 }  // namespace
 
 // Prefetches the q rows [q0, q0+nq) and all k, v rows of head h in batch b (the next unit's inputs): short
@@ -199,79 +229,10 @@ void prefetch_unit(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int
 
 int64_t attention_tile_queries() { return kBQ; }
 
-int64_t attention_tile_workspace(int64_t dh) {
-  return dh * kBQ + kBK * kBQ + kBQ * round_up8(dh) + 3 * kBQ;
-}
+int64_t attention_tile_workspace(int64_t dh) { return attention_detail::tile_workspace<Kernel>(dh); }
 
-// Queries [q0, q0 + nq) (nq <= attention_tile_queries()) of head h in batch b.
-// work: attention_tile_workspace(dh) floats.
 void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work) {
-  const int64_t dh = a.dh, dhp = round_up8(dh);
-  float* qt = work;            // [dh][kBQ]  c * Q^T, zero beyond nq
-  float* st = qt + dh * kBQ;   // [kBK][kBQ] S^T, then P^T
-  float* o = st + kBK * kBQ;   // [kBQ][dhp] unnormalised output
-  float* m = o + kBQ * dhp;    // [kBQ] running max (log2 domain)
-  float* l = m + kBQ;          // [kBQ] running sum
-  float* corr = l + kBQ;       // [kBQ] rescale factor of this key tile
-
-  const float c = a.scale * 1.44269504088896341f;
-  const float* q = a.q + b * a.q_bs + q0 * a.q_ld + h * dh;
-  const float* k = a.k + b * a.k_bs + h * dh;
-  const float* v = a.v + b * a.v_bs + h * dh;
-  const int64_t ncol = (nq + 15) / 16 * 16;  // query columns computed (multiple of 16)
-  pack_queries(q, a.q_ld, nq, ncol, dh, c, qt);
-  for (int64_t i = 0; i < nq * dhp; ++i) o[i] = 0.0f;
-  for (int64_t i = 0; i < ncol; ++i) m[i] = -__builtin_inff(), l[i] = 0.0f;
-
-  const int64_t kend = a.causal ? min64(a.lk, q0 + nq) : a.lk;
-  for (int64_t k0 = 0; k0 < kend; k0 += kBK) {
-    const int64_t nk = min64(kBK, kend - k0);
-    for (int64_t i0 = 0; i0 < ncol; i0 += 16) score_rows(qt + i0, dh, k + k0 * a.k_ld, a.k_ld, nk, st + i0);
-    if (a.causal && k0 + nk - 1 > q0) {  // key k0+j is hidden from query q0+i when k0+j > q0+i
-      for (int64_t j = 0; j < nk; ++j)
-        for (int64_t i = 0; i < ncol; ++i)
-          if (k0 + j > q0 + i) st[j * kBQ + i] = -__builtin_inff();
-    }
-    // Online softmax down each column (8 queries per vector).
-    for (int64_t i = 0; i < ncol; i += 8) {
-      __m256 mx = _mm256_set1_ps(-__builtin_inff());
-      for (int64_t j = 0; j < nk; ++j) mx = _mm256_max_ps(mx, _mm256_loadu_ps(st + j * kBQ + i));
-      const __m256 m_old = _mm256_loadu_ps(m + i);
-      const __m256 m_new = _mm256_max_ps(m_old, mx);
-      // A column with no visible key yet keeps m = -inf; subtract 0 instead so exp2(-inf - 0) = 0, not NaN.
-      const __m256 m_sub = _mm256_blendv_ps(m_new, _mm256_setzero_ps(),
-                                            _mm256_cmp_ps(m_new, _mm256_set1_ps(-__builtin_inff()), _CMP_EQ_OQ));
-      const __m256 cr = exp2_ps(_mm256_sub_ps(m_old, m_sub));
-      __m256 sum = _mm256_setzero_ps();
-      for (int64_t j = 0; j < nk; ++j) {
-        const __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_sub));
-        _mm256_storeu_ps(st + j * kBQ + i, p);
-        sum = _mm256_add_ps(sum, p);
-      }
-      _mm256_storeu_ps(m + i, m_new);
-      _mm256_storeu_ps(l + i, _mm256_fmadd_ps(_mm256_loadu_ps(l + i), cr, sum));
-      _mm256_storeu_ps(corr + i, cr);
-    }
-    if (k0 > 0) {  // rescale the accumulators of rows whose running max rose
-      for (int64_t i = 0; i < nq; ++i) {
-        if (corr[i] == 1.0f) continue;
-        const __m256 cr = _mm256_broadcast_ss(corr + i);
-        float* orow = o + i * dhp;
-        for (int64_t d = 0; d < dhp; d += 8) _mm256_storeu_ps(orow + d, _mm256_mul_ps(_mm256_loadu_ps(orow + d), cr));
-      }
-    }
-    pv_rows(st, nk, v + k0 * a.v_ld, a.v_ld, dh, nq, o, dhp);
-  }
-
-  float* out = a.out + b * a.out_bs + q0 * a.out_ld + h * dh;
-  for (int64_t i = 0; i < nq; ++i) {
-    const __m256 inv = _mm256_set1_ps(1.0f / l[i]);
-    const float* orow = o + i * dhp;
-    float* dst = out + i * a.out_ld;
-    int64_t d = 0;
-    for (; d + 8 <= dh; d += 8) _mm256_storeu_ps(dst + d, _mm256_mul_ps(_mm256_loadu_ps(orow + d), inv));
-    if (d < dh) _mm256_maskstore_ps(dst + d, tail_mask(dh - d), _mm256_mul_ps(_mm256_loadu_ps(orow + d), inv));
-  }
+  attention_detail::attention_tile<Kernel>(a, b, h, q0, nq, work);
 }
 
 }  // namespace egopd::avx2
