@@ -34,8 +34,8 @@ KernelPath kernel_path();                          // the path in use
 // between kernel calls, never during one.
 void set_kernel_path(KernelPath p);
 
-// A SIMD path is in use: the element-wise, norm and attention kernels of this architecture's SIMD folder (avx2/ on
-// x86-64, neon/ on AArch64) apply.
+// A SIMD path is in use: the element-wise, norm and attention kernels of this architecture's SIMD folders (avx2/
+// and avx512/ on x86-64, neon/ on AArch64) apply.
 inline bool use_simd() { return kernel_path() != KernelPath::Portable; }
 
 }  // namespace egopd

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -23,6 +24,14 @@ std::vector<float> normal_values(size_t n, float mean, float stddev, uint32_t se
   return v;
 }
 
+// Floats after the output a kernel must not write (one vector of the widest path and more).
+constexpr int64_t kGuard = 20;
+constexpr float kSentinel = -99.0f;
+
+void expect_guard_intact(const std::vector<float>& v, int64_t n) {
+  for (size_t i = n; i < v.size(); ++i) ASSERT_EQ(v[i], kSentinel) << "written past the output at " << i;
+}
+
 struct GnCase {
   int64_t batch, frames, c, s, groups;
   float mean = 0.0f, stddev = 1.0f;  // input distribution (an offset mean tests the variance's cancellation)
@@ -32,7 +41,8 @@ void check_group_norm(const GnCase& g, bool silu, bool affine, bool in_place) {
   const int64_t n = g.batch * g.frames * g.c * g.s;
   const std::vector<float> x = normal_values(n, g.mean, g.stddev, 11 + static_cast<uint32_t>(n));
   const std::vector<float> gamma = normal_values(g.c, 1.0f, 0.5f, 3), beta = normal_values(g.c, 0.0f, 0.5f, 4);
-  std::vector<float> y(n, -99.0f), buf = x;
+  std::vector<float> y(n + kGuard, kSentinel), buf = x;
+  buf.resize(n + kGuard, kSentinel);
   const float eps = 1e-5f;
   const float* gp = affine ? gamma.data() : nullptr;
   const float* bp = affine ? beta.data() : nullptr;
@@ -42,6 +52,7 @@ void check_group_norm(const GnCase& g, bool silu, bool affine, bool in_place) {
   } else {
     group_norm(x.data(), y.data(), g.batch, g.frames, g.c, g.s, g.groups, gp, bp, eps, silu);
   }
+  expect_guard_intact(y, n);
   const int64_t cg = g.c / g.groups;
   // x[b, f, ch, i] at ((b*frames + f)*c + ch)*s + i
   auto at = [&](int64_t b, int64_t f, int64_t ch, int64_t i) { return ((b * g.frames + f) * g.c + ch) * g.s + i; };
@@ -79,6 +90,9 @@ TEST(GroupNorm, AwkwardShapesBothPaths) {
       {1, 16, 20, 33, 4},      // video layout, odd c/groups
       {1, 1, 7, 1, 7},         // s = 1
       {2, 1, 64, 37, 32},      // per-frame 4-D, odd s (tails of 8)
+      {1, 2, 32, 17, 8},       // s = 17, 68 values a frame and group (tails of 16)
+      {2, 1, 30, 15, 3},       // s = 15, 150 values a group
+      {1, 3, 12, 31, 4},       // s = 31
       {1, 4, 16, 64, 2, 100.0f, 1.0f},  // large mean relative to the spread
   };
   for (KernelPath path : supported_kernel_paths()) {
@@ -111,13 +125,14 @@ TEST(GroupNorm, RejectsChannelsNotDivisibleByGroups) {
 void check_layer_norm(int64_t rows, int64_t c, bool affine, bool in_place, float mean) {
   const std::vector<float> x = normal_values(rows * c, mean, 1.5f, 21 + static_cast<uint32_t>(c));
   const std::vector<float> gamma = normal_values(c, 1.0f, 0.5f, 5), beta = normal_values(c, 0.0f, 0.5f, 6);
-  std::vector<float> y(rows * c, -99.0f);
+  std::vector<float> y(rows * c + kGuard, kSentinel);
   if (in_place) {
-    y = x;
+    std::copy(x.begin(), x.end(), y.begin());
     layer_norm(y.data(), y.data(), rows, c, affine ? gamma.data() : nullptr, affine ? beta.data() : nullptr, 1e-5f);
   } else {
     layer_norm(x.data(), y.data(), rows, c, affine ? gamma.data() : nullptr, affine ? beta.data() : nullptr, 1e-5f);
   }
+  expect_guard_intact(y, rows * c);
   const double tol = 3e-6 + 1e-7 * std::fabs(mean) / 1.5;  // ~ulp(mean) from rounding the mean to float
   for (int64_t r = 0; r < rows; ++r) {
     double sum = 0.0;
@@ -137,7 +152,7 @@ void check_layer_norm(int64_t rows, int64_t c, bool affine, bool in_place, float
 TEST(LayerNorm, AwkwardWidthsBothPaths) {
   for (KernelPath path : supported_kernel_paths()) {
     test::KernelPathGuard guard(path);
-    for (int64_t c : {1, 3, 7, 8, 13, 33, 320, 1024, 1281})
+    for (int64_t c : {1, 3, 7, 8, 13, 15, 16, 17, 31, 33, 63, 65, 100, 320, 1024, 1281, 1283})
       for (int variant = 0; variant < 4; ++variant) {
         const bool affine = variant & 1, in_place = variant & 2;
         SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " c=" << c << " affine=" << affine
@@ -155,14 +170,16 @@ TEST(LayerNorm, AwkwardWidthsBothPaths) {
 TEST(Softmax, RowsWithMasksAndLargeValues) {
   for (KernelPath path : supported_kernel_paths()) {
     test::KernelPathGuard guard(path);
-    for (int64_t cols : {1, 5, 8, 17, 77, 1030}) {
+    for (int64_t cols : {1, 5, 8, 15, 16, 17, 31, 33, 77, 100, 1030}) {
       SCOPED_TRACE(testing::Message() << kernel_path_name(path) << " cols=" << cols);
       const int64_t rows = cols > 100 ? 40 : 4;
       std::vector<float> x = normal_values(rows * cols, 0.0f, 3.0f, 31 + static_cast<uint32_t>(cols));
       for (int64_t j = 0; j < cols; ++j) x[cols + j] += 1000.0f;                   // row 1: exp would overflow
       for (int64_t j = 1; j < cols; j += 2) x[2 * cols + j] = -INFINITY;            // row 2: masked entries
+      x.resize(rows * cols + kGuard, kSentinel);
       const std::vector<float> in = x;
       softmax_rows(x.data(), rows, cols);
+      expect_guard_intact(x, rows * cols);
       for (int64_t r = 0; r < rows; ++r) {
         double mx = -INFINITY, sum = 0.0;
         for (int64_t j = 0; j < cols; ++j) mx = std::max(mx, static_cast<double>(in[r * cols + j]));

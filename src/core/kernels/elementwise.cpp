@@ -12,19 +12,20 @@
 
 namespace egopd {
 
-// The SIMD kernels of this architecture: avx2/elementwise.cpp on x86-64 (avx2 and avx512 paths), neon/elementwise.cpp
-// on AArch64; serial kernels on contiguous spans.
-namespace EGOPD_SIMD_NS {
-void silu_inplace(float* x, int64_t n);
-void gelu_inplace(float* x, int64_t n);
-void quick_gelu_inplace(float* x, int64_t n);
-void erf_inplace(float* x, int64_t n);
-void geglu_row(const float* a, const float* g, int64_t d, float* out);
-void blend_inplace(float* y, const float* x, float a, int64_t n);
-void add_inplace(float* y, const float* x, int64_t n);
-}  // namespace EGOPD_SIMD_NS
-namespace simd = EGOPD_SIMD_NS;
-#undef EGOPD_SIMD_NS
+// Each SIMD folder's kernels on contiguous spans (serial; the callers below split work across threads):
+// avx2/ and avx512/elementwise.cpp on x86-64, neon/elementwise.cpp on AArch64.
+#define EGOPD_DECLARE_SPAN_KERNELS(ns)                                   \
+  namespace ns {                                                         \
+  void silu_inplace(float* x, int64_t n);                                \
+  void gelu_inplace(float* x, int64_t n);                                \
+  void quick_gelu_inplace(float* x, int64_t n);                          \
+  void erf_inplace(float* x, int64_t n);                                 \
+  void geglu_row(const float* a, const float* g, int64_t d, float* out); \
+  void blend_inplace(float* y, const float* x, float a, int64_t n);      \
+  void add_inplace(float* y, const float* x, int64_t n);                 \
+  }
+EGOPD_FOR_EACH_SIMD_NS(EGOPD_DECLARE_SPAN_KERNELS)
+#undef EGOPD_DECLARE_SPAN_KERNELS
 
 namespace {
 
@@ -55,48 +56,69 @@ float gelu_scalar(float x) {
   return 0.5f * x * (z < 0.0f ? std::erfc(-z) : 1.0f + std::erf(z));
 }
 
+// The portable span kernels.
+void silu_span(float* x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) x[i] = sigmoid_mul(x[i], 1.0f);
+}
+void gelu_span(float* x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) x[i] = gelu_scalar(x[i]);
+}
+void quick_gelu_span(float* x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) x[i] = sigmoid_mul(x[i], 1.702f);
+}
+void erf_span(float* x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) x[i] = std::erf(x[i]);
+}
+void geglu_row_portable(const float* a, const float* g, int64_t d, float* out) {
+  for (int64_t i = 0; i < d; ++i) out[i] = a[i] * gelu_scalar(g[i]);
+}
+void blend_span(float* y, const float* x, float a, int64_t n) {
+  const float c = 1.0f - a;
+  for (int64_t i = 0; i < n; ++i) y[i] = a * x[i] + c * y[i];
+}
+void add_span(float* y, const float* x, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) y[i] += x[i];
+}
+
+// One kernel path's span kernels.
+struct SpanKernels {
+  void (*silu)(float* x, int64_t n);
+  void (*gelu)(float* x, int64_t n);
+  void (*quick_gelu)(float* x, int64_t n);
+  void (*erf)(float* x, int64_t n);
+  void (*geglu_row)(const float* a, const float* g, int64_t d, float* out);
+  void (*blend)(float* y, const float* x, float a, int64_t n);
+  void (*add)(float* y, const float* x, int64_t n);
+};
+
+#define EGOPD_SPAN_KERNELS(ns)                                                                              \
+  SpanKernels{ns::silu_inplace, ns::gelu_inplace, ns::quick_gelu_inplace, ns::erf_inplace, ns::geglu_row, \
+              ns::blend_inplace, ns::add_inplace},
+constexpr SpanKernels kSpanKernels[] = {
+    {silu_span, gelu_span, quick_gelu_span, erf_span, geglu_row_portable, blend_span, add_span},
+    EGOPD_FOR_EACH_SIMD_NS(EGOPD_SPAN_KERNELS)};
+#undef EGOPD_SPAN_KERNELS
+
+// The span kernels of the kernel path in use.
+const SpanKernels& kernels() { return kSpanKernels[kernel_set_index()]; }
+
+void map_inplace(void (*span)(float*, int64_t), float* x, int64_t n) {
+  for_chunks(n, [&](int64_t b, int64_t e) { span(x + b, e - b); });
+}
+
 }  // namespace
 
-void silu_inplace(float* x, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::silu_inplace(x + b, e - b); });
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.0f);
-  });
-}
-
-void gelu_inplace(float* x, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::gelu_inplace(x + b, e - b); });
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) x[i] = gelu_scalar(x[i]);
-  });
-}
-
-void quick_gelu_inplace(float* x, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::quick_gelu_inplace(x + b, e - b); });
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) x[i] = sigmoid_mul(x[i], 1.702f);
-  });
-}
-
-void erf_inplace(float* x, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::erf_inplace(x + b, e - b); });
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) x[i] = std::erf(x[i]);
-  });
-}
+void silu_inplace(float* x, int64_t n) { map_inplace(kernels().silu, x, n); }
+void gelu_inplace(float* x, int64_t n) { map_inplace(kernels().gelu, x, n); }
+void quick_gelu_inplace(float* x, int64_t n) { map_inplace(kernels().quick_gelu, x, n); }
+void erf_inplace(float* x, int64_t n) { map_inplace(kernels().erf, x, n); }
 
 void geglu(const float* p, int64_t rows, int64_t d, float* out) {
-  const bool vec = use_simd();
+  const auto row_fn = kernels().geglu_row;
 #pragma omp parallel for schedule(static) if (run_parallel(rows * d))
   for (int64_t r = 0; r < rows; ++r) {
     const float* a = p + r * 2 * d;  // [rows, 2d]: value half, then gate half
-    const float* g = a + d;
-    float* o = out + r * d;
-    if (vec) {
-      simd::geglu_row(a, g, d, o);
-    } else {
-      for (int64_t i = 0; i < d; ++i) o[i] = a[i] * gelu_scalar(g[i]);
-    }
+    row_fn(a, a + d, d, out + r * d);
   }
 }
 
@@ -130,18 +152,13 @@ void timestep_embedding(const float* t, int64_t n, int64_t dim, float* out) {
 }
 
 void blend_inplace(float* y, const float* x, float a, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::blend_inplace(y + b, x + b, a, e - b); });
-  const float c = 1.0f - a;
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) y[i] = a * x[i] + c * y[i];
-  });
+  const auto span = kernels().blend;
+  for_chunks(n, [&](int64_t b, int64_t e) { span(y + b, x + b, a, e - b); });
 }
 
 void add_inplace(float* y, const float* x, int64_t n) {
-  if (use_simd()) return for_chunks(n, [&](int64_t b, int64_t e) { simd::add_inplace(y + b, x + b, e - b); });
-  for_chunks(n, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) y[i] += x[i];
-  });
+  const auto span = kernels().add;
+  for_chunks(n, [&](int64_t b, int64_t e) { span(y + b, x + b, e - b); });
 }
 
 }  // namespace egopd

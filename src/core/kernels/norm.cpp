@@ -12,15 +12,17 @@
 
 namespace egopd {
 
-// The SIMD kernels of this architecture: avx2/norm.cpp on x86-64 (avx2 and avx512 paths), neon/norm.cpp on AArch64.
-namespace EGOPD_SIMD_NS {
-void shifted_sums(const float* x, int64_t n, double shift, double* sum, double* sumsq);
-void affine_span(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);
-void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps);
-void softmax_row(float* x, int64_t n);
-}  // namespace EGOPD_SIMD_NS
-namespace simd = EGOPD_SIMD_NS;
-#undef EGOPD_SIMD_NS
+// Each SIMD folder's row kernels (serial; the callers below split work across threads): avx2/ and avx512/norm.cpp
+// on x86-64, neon/norm.cpp on AArch64.
+#define EGOPD_DECLARE_ROW_KERNELS(ns)                                                                         \
+  namespace ns {                                                                                              \
+  void shifted_sums(const float* x, int64_t n, double shift, double* sum, double* sumsq);                     \
+  void affine_span(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);     \
+  void layer_norm_row(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps); \
+  void softmax_row(float* x, int64_t n);                                                                      \
+  }
+EGOPD_FOR_EACH_SIMD_NS(EGOPD_DECLARE_ROW_KERNELS)
+#undef EGOPD_DECLARE_ROW_KERNELS
 
 namespace {
 
@@ -74,6 +76,23 @@ void softmax_row_portable(float* p, int64_t cols) {
   for (int64_t i = 0; i < cols; ++i) p[i] *= inv;
 }
 
+// One kernel path's row kernels.
+struct RowKernels {
+  void (*shifted_sums)(const float* x, int64_t n, double shift, double* sum, double* sumsq);
+  void (*affine_span)(const float* x, float* y, int64_t n, float mean, float scale, float shift, bool silu);
+  void (*layer_norm_row)(const float* x, float* y, int64_t c, const float* gamma, const float* beta, float eps);
+  void (*softmax_row)(float* x, int64_t n);
+};
+
+#define EGOPD_ROW_KERNELS(ns) RowKernels{ns::shifted_sums, ns::affine_span, ns::layer_norm_row, ns::softmax_row},
+constexpr RowKernels kRowKernels[] = {
+    {shifted_sums_portable, affine_span_portable, layer_norm_row_portable, softmax_row_portable},
+    EGOPD_FOR_EACH_SIMD_NS(EGOPD_ROW_KERNELS)};
+#undef EGOPD_ROW_KERNELS
+
+// The row kernels of the kernel path in use.
+const RowKernels& kernels() { return kRowKernels[kernel_set_index()]; }
+
 }  // namespace
 
 void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t c, int64_t s, int64_t groups,
@@ -82,9 +101,8 @@ void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t
                                                   std::to_string(groups) + " groups");
   const int64_t cg = c / groups;
   const int64_t units = batch * groups;
-  const bool vec = use_simd();
-  const auto sums = vec ? simd::shifted_sums : shifted_sums_portable;
-  const auto affine = vec ? simd::affine_span : affine_span_portable;
+  const auto sums = kernels().shifted_sums;
+  const auto affine = kernels().affine_span;
 #pragma omp parallel for schedule(dynamic, 1) if (run_parallel(units, batch * frames * c * s))
   for (int64_t u = 0; u < units; ++u) {
     const int64_t b = u / groups, g = u % groups;
@@ -111,13 +129,13 @@ void group_norm(const float* x, float* y, int64_t batch, int64_t frames, int64_t
 }
 
 void layer_norm(const float* x, float* y, int64_t rows, int64_t c, const float* gamma, const float* beta, float eps) {
-  const auto row_fn = use_simd() ? simd::layer_norm_row : layer_norm_row_portable;
+  const auto row_fn = kernels().layer_norm_row;
 #pragma omp parallel for schedule(static) if (run_parallel(rows, rows * c))
   for (int64_t r = 0; r < rows; ++r) row_fn(x + r * c, y + r * c, c, gamma, beta, eps);
 }
 
 void softmax_rows(float* x, int64_t rows, int64_t cols) {
-  const auto row_fn = use_simd() ? simd::softmax_row : softmax_row_portable;
+  const auto row_fn = kernels().softmax_row;
 #pragma omp parallel for schedule(static) if (run_parallel(rows, rows * cols))
   for (int64_t r = 0; r < rows; ++r) row_fn(x + r * cols, cols);
 }

@@ -3,11 +3,18 @@
 // Include ONLY from kernels/avx2/ and kernels/avx512/, after a `#pragma GCC target` enabling at least
 // avx2,fma,f16c and <immintrin.h>.
 // Every function is `static inline` so each AVX2 translation unit gets its own internal copy (nothing leaks
-// into portable code). Polynomial coefficients are Chebyshev fits of the exact functions; accuracy (tested
-// against double precision): exp ~1 ulp, erf and 1+erf a few ulp relative over the whole float range.
+// into portable code). Polynomial coefficients (vec_math_poly.h, shared with the other paths) are Chebyshev fits
+// of the exact functions; accuracy (tested against double precision): exp ~1 ulp, erf and 1+erf a few ulp
+// relative over the whole float range. avx512/vec_math.h has the 512-bit counterparts.
 #include <immintrin.h>
 
+#include "core/kernels/vec_math_poly.h"
+
 namespace egopd::vmath {
+
+using vmath_poly::kErfcTail;
+using vmath_poly::kErfSmall;
+using vmath_poly::kExp;
 
 static inline __m256 horner(__m256 x, const float* c, int n) {  // c[0] x^(n-1) + ... + c[n-1]
   __m256 p = _mm256_set1_ps(c[0]);
@@ -17,13 +24,11 @@ static inline __m256 horner(__m256 x, const float* c, int n) {  // c[0] x^(n-1) 
 
 // exp(x) for x in [-87.34, 88.03] (no range handling): Chebyshev polynomial after x = n ln2 + r.
 static inline __m256 exp_core_ps(__m256 x) {
-  static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
-                                 5.000000000e-01f};  // (exp(r) - 1 - r) / r^2 on [-ln2/2, ln2/2]
   const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)),
                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
   __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(6.931471825e-01f), x);  // x - n ln2, ln2 split hi + lo
   r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-1.904654212e-09f), r);
-  const __m256 p = horner(r, kPoly, 5);
+  const __m256 p = horner(r, kExp, 5);
   const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(r, r), p, r), _mm256_set1_ps(1.0f));
   const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
   return _mm256_mul_ps(y, _mm256_castsi256_ps(e));
@@ -47,25 +52,17 @@ static inline __m256 exp_nonpositive_ps(__m256 x) {
 
 // 2^x (same limits as exp_ps): attention folds log2(e) into its query scale and calls this directly.
 static inline __m256 exp2_ps(__m256 x) {
-  static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
-                                 5.000000000e-01f};
   const __m256 lo_limit = _mm256_set1_ps(-126.0f), hi_limit = _mm256_set1_ps(128.0f);
   const __m256 xc = _mm256_min_ps(_mm256_max_ps(x, lo_limit), _mm256_set1_ps(127.0f));
   const __m256 n = _mm256_round_ps(xc, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
   const __m256 r = _mm256_mul_ps(_mm256_sub_ps(xc, n), _mm256_set1_ps(0.693147180559945309f));  // x - n exact
-  const __m256 p = horner(r, kPoly, 5);
+  const __m256 p = horner(r, kExp, 5);
   const __m256 y = _mm256_add_ps(_mm256_fmadd_ps(_mm256_mul_ps(r, r), p, r), _mm256_set1_ps(1.0f));
   const __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
   __m256 res = _mm256_mul_ps(y, _mm256_castsi256_ps(e));
   res = _mm256_andnot_ps(_mm256_cmp_ps(x, lo_limit, _CMP_LT_OQ), res);
   return _mm256_blendv_ps(res, _mm256_set1_ps(__builtin_inff()), _mm256_cmp_ps(x, hi_limit, _CMP_GE_OQ));
 }
-
-static const float kErfSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,
-                                   1.128359437e-01f, -3.761262596e-01f, 1.128379107e+00f};  // erf(a)/a in a^2, a<1
-static const float kErfcTail[9] = {-4.387202486e-02f, 2.385862917e-01f, -4.306684136e-01f,
-                                   2.423289418e-01f,  -1.475901343e-02f, 2.010129243e-01f,
-                                   2.430254966e-01f,  2.824241221e-01f,  2.820825875e-01f};  // erfc(a) e^(a^2)/t
 
 // erfc(a) for a >= 1 (any a >= 0 gives a finite value): t R(t) exp(-a^2), t = 2/(2+a);
 // a^2 = hi + lo exactly and exp(-hi-lo) ~ exp(-hi)(1-lo).

@@ -1,14 +1,21 @@
 #pragma once
 // Vectorised float32 math for the NEON kernels (AArch64 Advanced SIMD, ARMv8.0-A): exp, exp2, erf, 1+erf, SiLU,
-// GELU, horizontal reductions, and tail handling. The same algorithms and coefficients as the AVX2 versions
-// (avx2/vec_math.h), four lanes wide, so both paths give the same accuracy (tested against double precision).
+// GELU, horizontal reductions, and tail handling. The same algorithms and coefficients (vec_math_poly.h) as the
+// AVX2 versions (avx2/vec_math.h), four lanes wide, so both paths give the same accuracy (tested against double
+// precision).
 // Include ONLY from kernels/neon/; everything is `static inline` (one private copy per file).
 #include <arm_neon.h>
 
 #include <cstdint>
 #include <cstring>
 
+#include "core/kernels/vec_math_poly.h"
+
 namespace egopd::nmath {
+
+using vmath_poly::kErfcTail;
+using vmath_poly::kErfSmall;
+using vmath_poly::kExp;
 
 static inline float32x4_t horner(float32x4_t x, const float* c, int n) {  // c[0] x^(n-1) + ... + c[n-1]
   float32x4_t p = vdupq_n_f32(c[0]);
@@ -16,12 +23,9 @@ static inline float32x4_t horner(float32x4_t x, const float* c, int n) {  // c[0
   return p;
 }
 
-static const float kExpPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
-                                  5.000000000e-01f};  // (exp(r) - 1 - r) / r^2 on [-ln2/2, ln2/2]
-
 // 2^n (n integral, -126..127) times exp(r) for |r| <= ln2/2.
 static inline float32x4_t scale_exp_r(float32x4_t n, float32x4_t r) {
-  const float32x4_t p = horner(r, kExpPoly, 5);
+  const float32x4_t p = horner(r, kExp, 5);
   const float32x4_t y = vaddq_f32(vfmaq_f32(r, vmulq_f32(r, r), p), vdupq_n_f32(1.0f));
   const int32x4_t e = vshlq_n_s32(vaddq_s32(vcvtq_s32_f32(n), vdupq_n_s32(127)), 23);
   return vmulq_f32(y, vreinterpretq_f32_s32(e));
@@ -63,12 +67,6 @@ static inline float32x4_t exp2_v(float32x4_t x) {
   const float32x4_t res = zero_where(vcltq_f32(x, lo_limit), scale_exp_r(n, r));
   return select(vcgeq_f32(x, hi_limit), vdupq_n_f32(__builtin_inff()), res);
 }
-
-static const float kErfSmall[7] = {7.875874871e-05f, -8.016864303e-04f, 5.189087242e-03f, -2.685421146e-02f,
-                                   1.128359437e-01f, -3.761262596e-01f, 1.128379107e+00f};  // erf(a)/a in a^2, a<1
-static const float kErfcTail[9] = {-4.387202486e-02f, 2.385862917e-01f, -4.306684136e-01f,
-                                   2.423289418e-01f,  -1.475901343e-02f, 2.010129243e-01f,
-                                   2.430254966e-01f,  2.824241221e-01f,  2.820825875e-01f};  // erfc(a) e^(a^2)/t
 
 // erfc(a) for a >= 1 (any a >= 0 gives a finite value): t R(t) exp(-a^2), t = 2/(2+a);
 // a^2 = hi + lo exactly and exp(-hi-lo) ~ exp(-hi)(1-lo).
