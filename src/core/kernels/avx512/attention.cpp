@@ -14,27 +14,13 @@
 #include "core/kernels/attention.h"
 #include "core/kernels/attention_tile.h"
 #include "core/kernels/avx2/transpose.h"
+#include "core/kernels/avx512/vec_math.h"
 
 namespace egopd::avx512 {
 
-namespace {
+using namespace egopd::vmath;
 
-// 2^x, the lane-wise operations of vmath::exp2_ps (AVX2): both paths round alike.
-inline __m512 exp2_ps(__m512 x) {
-  static const float kPoly[5] = {1.392617589e-03f, 8.363173343e-03f, 4.166655615e-02f, 1.666657776e-01f,
-                                 5.000000000e-01f};
-  const __m512 lo_limit = _mm512_set1_ps(-126.0f), hi_limit = _mm512_set1_ps(128.0f);
-  const __m512 xc = _mm512_min_ps(_mm512_max_ps(x, lo_limit), _mm512_set1_ps(127.0f));
-  const __m512 n = _mm512_roundscale_ps(xc, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  const __m512 r = _mm512_mul_ps(_mm512_sub_ps(xc, n), _mm512_set1_ps(0.693147180559945309f));
-  __m512 p = _mm512_set1_ps(kPoly[0]);
-  for (int i = 1; i < 5; ++i) p = _mm512_fmadd_ps(p, r, _mm512_set1_ps(kPoly[i]));
-  const __m512 y = _mm512_add_ps(_mm512_fmadd_ps(_mm512_mul_ps(r, r), p, r), _mm512_set1_ps(1.0f));
-  const __m512i e = _mm512_slli_epi32(_mm512_add_epi32(_mm512_cvtps_epi32(n), _mm512_set1_epi32(127)), 23);
-  __m512 res = _mm512_mul_ps(y, _mm512_castsi512_ps(e));
-  res = _mm512_maskz_mov_ps(_mm512_cmp_ps_mask(x, lo_limit, _CMP_NLT_UQ), res);
-  return _mm512_mask_blend_ps(_mm512_cmp_ps_mask(x, hi_limit, _CMP_GE_OQ), res, _mm512_set1_ps(__builtin_inff()));
-}
+namespace {
 
 constexpr int64_t kBQ = 64;  // queries per tile (2 column blocks of 32)
 constexpr int64_t kBK = 48;  // keys per tile (4 row blocks of 12)
@@ -42,7 +28,7 @@ constexpr int kSR = 12;      // score micro-tile rows (keys)
 constexpr int kPR = 6;       // P·V micro-tile rows (queries)
 constexpr int kPV = 4;       // P·V micro-tile channel vectors (64 channels)
 
-inline __mmask16 lanes(int64_t n) { return n >= 16 ? __mmask16(0xffff) : __mmask16((1u << n) - 1u); }
+inline __mmask16 lanes(int64_t n) { return tail_mask16(n < 16 ? n : 16); }
 
 // S^T[r][0..16*NC) = sum_d K[r][d] * Qt[d][0..16*NC) for R key rows; qt points at Qt[0][i0] (stride kBQ).
 template <int R, int NC>

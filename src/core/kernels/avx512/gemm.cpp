@@ -10,7 +10,6 @@
 #include <immintrin.h>
 
 #include "core/kernels/avx2/pack.h"
-#include "core/kernels/avx2/vec_math.h"
 #include "core/kernels/avx512/tile.h"
 
 namespace egopd::gemm_detail {

@@ -4,7 +4,7 @@
 // the `#pragma GCC target` of those files and <immintrin.h>; everything is file-local.
 #include <cstdint>
 
-#include "core/kernels/avx2/vec_math.h"
+#include "core/kernels/avx512/vec_math.h"
 #include "core/kernels/gemm_internal.h"
 
 namespace egopd::gemm_detail {
@@ -14,16 +14,14 @@ constexpr int MR = kMrAvx512, NR = kNrAvx512;
 
 inline __mmask16 lanes(int n) { return n <= 0 ? __mmask16(0) : n >= 16 ? __mmask16(0xffff) : __mmask16((1u << n) - 1u); }
 
-// The activations of the AVX2 path on both halves: the same polynomials, so both paths round alike.
+// The activations of the AVX2 path (vec_math.h: the same per-lane operations, so both paths round alike).
 inline __m512 act_ps(Act act, __m512 v) {
-  __m256 lo = _mm512_castps512_ps256(v), hi = _mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1));
   switch (act) {
-    case Act::SiLU: lo = vmath::silu_ps(lo), hi = vmath::silu_ps(hi); break;
-    case Act::GELU: lo = vmath::gelu_ps(lo), hi = vmath::gelu_ps(hi); break;
-    case Act::QuickGELU: lo = vmath::x_sigmoid_ps(lo, 1.702f), hi = vmath::x_sigmoid_ps(hi, 1.702f); break;
+    case Act::SiLU: return vmath::silu_ps(v);
+    case Act::GELU: return vmath::gelu_ps(v);
+    case Act::QuickGELU: return vmath::x_sigmoid_ps(v, 1.702f);
     default: return v;
   }
-  return _mm512_insertf32x8(_mm512_castps256_ps512(lo), hi, 1);
 }
 
 // 16 columns of row i of the tile (mask m of the valid ones): C = act(v + C_old? + bias) + C_old?.
