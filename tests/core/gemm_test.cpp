@@ -325,9 +325,9 @@ TEST_P(GemmTest, OneThreadAndTwoThreadsAgree) {
 // alike. Odd K (the last bfloat16 pair half empty), every operand dtype, transposes, tails, several K passes.
 TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
   uint32_t seed = 600;
-  for (int64_t M : {1, 7, 12, 13, 50})
+  for (int64_t M : {1, 7, 9, 12, 13, 50})
     for (int64_t N : {1, 15, 32, 33, 70})
-      for (int64_t K : {1, 2, 7, 31, 700})
+      for (int64_t K : {1, 2, 7, 16, 17, 31, 700})
         for (int t = 0; t < 4; ++t) {
           Case c{M, N, K};
           c.ta = t & 1;
@@ -335,6 +335,13 @@ TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
           c.bf16 = true;
           ASSERT_EQ(run_case(c, seed++), 0);
         }
+  // Float32 A: K tails of 16, two K passes, several row blocks.
+  for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{5, 40, 2900}, {300, 64, 47}, {25, 33, 1345}}) {
+    Case c{M, N, K};
+    c.bf16 = true;
+    c.bias = 1;
+    ASSERT_EQ(run_case(c, seed++), 0);
+  }
   for (DType dt : {DType::F16, DType::BF16, DType::I8})
     for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{37, 50, 45}, {130, 70, 1001}}) {
       Case b{M, N, K, DType::F32, dt, false, true};
