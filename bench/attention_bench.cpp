@@ -1,4 +1,5 @@
-// Attention, GEGLU, GroupNorm+SiLU and LayerNorm at the SVD U-Net's shapes (16 frames, 32x32 latent).
+// Attention, GEGLU, GroupNorm+SiLU, LayerNorm and the token re-layouts at the SVD U-Net's shapes (16 frames, 32x32
+// latent).
 // Counters: GFLOP/s for attention (4*lq*lk*dh per head), GB/s (bytes read + written once) for the rest.
 // The last argument selects the kernel path: 2 = AVX-512, 1 = AVX2, 0 = portable (paths the CPU lacks are
 // skipped); compare ratios within one run. %peak is against the measured FMA peak of the path (fma_peak.h).
@@ -21,6 +22,7 @@
 #include "core/kernels/attention.h"
 #include "core/kernels/elementwise.h"
 #include "core/kernels/fma_peak.h"
+#include "core/kernels/layout.h"
 #include "core/kernels/norm.h"
 #include "core/threading.h"
 
@@ -207,6 +209,28 @@ void BM_LayerNorm(benchmark::State& state) {
 }
 BENCHMARK(BM_LayerNorm)->ArgNames({"rows", "c", "path"})->Args({16384, 320, 2})->Args({16384, 320, 1})->Args({16384, 320, 0})
     ->Unit(benchmark::kMillisecond)->MeasureProcessCPUTime();
+
+// Args: batch, rows, cols, add, path: [batch, rows, cols] -> [batch, cols, rows] (add: onto a residual).
+void BM_Transpose(benchmark::State& state) {
+  const int64_t batch = state.range(0), rows = state.range(1), cols = state.range(2);
+  const bool add = state.range(3) != 0;
+  set_path(state, 4);
+  const int64_t n = batch * rows * cols;
+  const std::vector<float> x = random_vector(n, 9);
+  std::vector<float> y = random_vector(n, 10);
+  run_measured(state, "GB/s", (add ? 3.0 : 2.0) * n * sizeof(float) * 1e-9, [&] {
+    if (add) egopd::transpose_add_batched(x.data(), y.data(), batch, rows, cols);
+    else egopd::transpose_batched(x.data(), y.data(), batch, rows, cols);
+    benchmark::DoNotOptimize(y.data());
+  });
+  egopd::set_kernel_path(egopd::supported_kernel_paths().back());
+}
+BENCHMARK(BM_Transpose)
+    ->ArgNames({"batch", "rows", "cols", "add", "path"})
+    ->ArgsProduct({{16}, {320}, {1024}, {0}, {0, 1, 2}})  // Tok: [F, C, HW] -> [F, HW, C]
+    ->ArgsProduct({{16}, {1024}, {320}, {1}, {0, 1, 2}})  // Tok^-1 onto the residual
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime();
 
 }  // namespace
 

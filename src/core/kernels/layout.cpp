@@ -2,35 +2,65 @@
 
 #include <algorithm>
 
+#include "core/cpu.h"
+
 namespace egopd {
 
-template <bool kAdd>
-static void transpose_tiles(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
-  constexpr int64_t T = 32;  // tile so both sides stay in cache
+#if defined(__x86_64__)
+// The SIMD block kernels (avx2/layout.cpp, avx512/layout.cpp): d[c * ldd + r] (+)= s[r * lds + c].
+namespace avx2 {
+void transpose_block(const float* s, int64_t lds, float* d, int64_t ldd, int64_t rows, int64_t cols, bool add);
+}
+namespace avx512 {
+void transpose_block(const float* s, int64_t lds, float* d, int64_t ldd, int64_t rows, int64_t cols, bool add);
+}
+#endif
+
+namespace {
+
+void transpose_block_portable(const float* s, int64_t lds, float* d, int64_t ldd, int64_t rows, int64_t cols,
+                              bool add) {
+  for (int64_t r = 0; r < rows; ++r)
+    for (int64_t c = 0; c < cols; ++c) {
+      float* dst = d + c * ldd + r;
+      *dst = add ? *dst + s[r * lds + c] : s[r * lds + c];
+    }
+}
+
+using TransposeBlock = void (*)(const float*, int64_t, float*, int64_t, int64_t, int64_t, bool);
+
+TransposeBlock transpose_block_kernel() {
+#if defined(__x86_64__)
+  if (kernel_path() == KernelPath::Avx512) return avx512::transpose_block;
+  if (kernel_path() == KernelPath::Avx2) return avx2::transpose_block;
+#endif
+  return transpose_block_portable;  // and NEON: the compiler's loops
+}
+
+// 32x32 blocks, so both sides of a block stay in L1.
+void transpose_tiles(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols, bool add) {
+  constexpr int64_t T = 32;
+  const TransposeBlock block = transpose_block_kernel();
 #pragma omp parallel for collapse(2) schedule(static) if (batch * rows * cols > 32768)
   for (int64_t b = 0; b < batch; ++b) {
     for (int64_t r0 = 0; r0 < rows; r0 += T) {
       const float* s = src + b * rows * cols;
       float* d = dst + b * rows * cols;
-      const int64_t r1 = std::min(rows, r0 + T);
-      for (int64_t c0 = 0; c0 < cols; c0 += T) {
-        const int64_t c1 = std::min(cols, c0 + T);
-        for (int64_t r = r0; r < r1; ++r)
-          for (int64_t c = c0; c < c1; ++c) {
-            if constexpr (kAdd) d[c * rows + r] += s[r * cols + c];
-            else d[c * rows + r] = s[r * cols + c];
-          }
-      }
+      const int64_t nr = std::min(T, rows - r0);
+      for (int64_t c0 = 0; c0 < cols; c0 += T)
+        block(s + r0 * cols + c0, cols, d + c0 * rows + r0, rows, nr, std::min(T, cols - c0), add);
     }
   }
 }
 
+}  // namespace
+
 void transpose_batched(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
-  transpose_tiles<false>(src, dst, batch, rows, cols);
+  transpose_tiles(src, dst, batch, rows, cols, false);
 }
 
 void transpose_add_batched(const float* src, float* dst, int64_t batch, int64_t rows, int64_t cols) {
-  transpose_tiles<true>(src, dst, batch, rows, cols);
+  transpose_tiles(src, dst, batch, rows, cols, true);
 }
 
 // [B*F, L, C] <-> [B*L, F, C]: both are row copies of C floats.

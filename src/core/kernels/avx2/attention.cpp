@@ -95,19 +95,6 @@ static void score_rows(const float* qt, int64_t dh, const float* k, int64_t k_ld
   }
 }
 
-// Qt[d][i] = c * q[i][d] for i < nq (zero for nq <= i < ncol): [nq, dh] (stride q_ld) -> [dh, kBQ].
-static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-  const int64_t nq8 = nq / 8 * 8, dh8 = dh / 8 * 8;
-  const __m256 vc = _mm256_set1_ps(c);
-  for (int64_t i = 0; i < nq8; i += 8)
-    for (int64_t d = 0; d < dh8; d += 8) transpose8_scaled(q + i * q_ld + d, q_ld, vc, qt + d * kBQ + i, kBQ);
-  for (int64_t d = 0; d < dh; ++d) {
-    float* row = qt + d * kBQ;
-    for (int64_t i = d < dh8 ? nq8 : 0; i < nq; ++i) row[i] = q[i * q_ld + d] * c;
-    for (int64_t i = nq; i < ncol; ++i) row[i] = 0.0f;
-  }
-}
-
 // O[r][0..8*NV) += sum_j P^T[j][r] * V[j][0..8*NV) for R query rows; the last vector of V may be masked.
 template <int R, int NV, bool MASKED>
 static inline void pv_block(const float* pt, int64_t nk, const float* v, int64_t v_ld, __m256i mask, float* o,
@@ -185,7 +172,7 @@ static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float
 struct Kernel {
   static constexpr int64_t kBQ = avx2::kBQ, kBK = avx2::kBK, kPad = 8;
   static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-    avx2::pack_queries(q, q_ld, nq, ncol, dh, c, qt);
+    pack_avx2::transpose_scaled(q, q_ld, nq, dh, c, qt, kBQ, ncol);
   }
   static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
     for (int64_t i0 = 0; i0 < ncol; i0 += 16) score_rows(qt + i0, dh, k, k_ld, nk, st + i0);

@@ -78,19 +78,6 @@ void score_rows(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64
   }
 }
 
-// Qt[d][i] = c * q[i][d] for i < nq (zero for nq <= i < ncol): [nq, dh] (stride q_ld) -> [dh, kBQ].
-void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-  const int64_t nq8 = nq / 8 * 8, dh8 = dh / 8 * 8;
-  const __m256 vc = _mm256_set1_ps(c);
-  for (int64_t i = 0; i < nq8; i += 8)
-    for (int64_t d = 0; d < dh8; d += 8) avx2::transpose8_scaled(q + i * q_ld + d, q_ld, vc, qt + d * kBQ + i, kBQ);
-  for (int64_t d = 0; d < dh; ++d) {
-    float* row = qt + d * kBQ;
-    for (int64_t i = d < dh8 ? nq8 : 0; i < nq; ++i) row[i] = q[i * q_ld + d] * c;
-    for (int64_t i = nq; i < ncol; ++i) row[i] = 0.0f;
-  }
-}
-
 // O[r][0..16*NV) += sum_j P^T[j][r] * V[j][0..16*NV) for R query rows; the last vector of V masked by `last`.
 template <int R, int NV>
 inline void pv_block(const float* pt, int64_t nk, const float* v, int64_t v_ld, __mmask16 last, float* o,
@@ -177,7 +164,7 @@ void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, fl
 struct Kernel {
   static constexpr int64_t kBQ = avx512::kBQ, kBK = avx512::kBK, kPad = 16;
   static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-    avx512::pack_queries(q, q_ld, nq, ncol, dh, c, qt);
+    pack_avx2::transpose_scaled(q, q_ld, nq, dh, c, qt, kBQ, ncol);
   }
   static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
     const int64_t ncol32 = ncol / 32 * 32;
