@@ -17,6 +17,7 @@
 #include "core/cpu.h"
 #include "core/dtype.h"
 #include "core/kernels/conv.h"
+#include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
 
 namespace egopd {
@@ -151,6 +152,7 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
   const std::vector<float> y0 = y;
   set_precision(precision_of(c.bf16, c.int8));
+  const bool winograd = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw) != "direct";
   conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
                  c.accumulate);
   set_precision(Precision::Fp32);
@@ -178,6 +180,22 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
           double r = act_ref(c.act, s);
           const double lip = c.act == Act::None ? 1.0 : 1.2;
           double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
+          if (winograd) {  // F(2,3): the products |U_i||V_i| bound the float32 error (conv_temporal.cpp)
+            const int64_t t0 = t - t % 2 - 1;  // d_k = x[t0 + k]
+            const auto xa = [&](int64_t ci, int64_t k) {
+              const int64_t ts = t0 + k;
+              return ts < 0 || ts >= c.f ? 0.0 : std::fabs(x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)));
+            };
+            double sw = 0;
+            for (int64_t ci = 0; ci < c.cin; ++ci) {
+              const size_t wi = size_t((o * c.cin + ci) * 3);
+              const double a0 = std::fabs(w_at(wi)), a2 = std::fabs(w_at(wi + 2)),
+                           a1 = 0.5 * (a0 + std::fabs(w_at(wi + 1)) + a2);
+              const double b1 = xa(ci, 1) + xa(ci, 2);
+              sw += t % 2 ? 2 * a1 * b1 + a2 * (xa(ci, 1) + xa(ci, 3)) : a0 * (xa(ci, 0) + xa(ci, 2)) + 2 * a1 * b1;
+            }
+            tl = lip * 2.0 * double(c.cin + 8) * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
+          }
           if (c.int8) tl += lip * q8.bound(w_max[size_t(o)]);
           if (c.accumulate) {
             r += y0[idx];
@@ -349,6 +367,40 @@ TEST_P(ConvTest, Int8Compute) {
   conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y8.data());
   set_precision(Precision::Fp32);
   EXPECT_NE(y8, y32);
+}
+
+// Winograd F(2,3) along time: odd and even frame counts (the last pair half empty), one and two videos, pixel
+// blocks and panel tails, every weight dtype, activations and residuals; Auto takes it on large layers only.
+TEST_P(ConvTest, TemporalWinograd) {
+  set_conv_algo(ConvAlgo::Winograd);
+  uint32_t seed = 700;
+  for (int64_t f : {2, 3, 5, 16})
+    for (int64_t hw : {1, 7, 33, 300}) {
+      EXPECT_EQ(run_temporal({2, f, 6, 5, hw}, seed++), 0);
+      EXPECT_EQ(run_temporal({1, f, 17, 13, hw, DType::F16}, seed++), 0);
+    }
+  EXPECT_EQ(run_temporal({1, 4, 700, 8, 40, DType::BF16}, seed++), 0);  // cin > KC: several K passes
+  EXPECT_EQ(run_temporal({2, 3, 20, 40, 70, DType::I8}, seed++), 0);
+  EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({1, 5, 30, 7, 65, DType::F16, Act::GELU, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);  // one frame: centre tap
+  {  // several pixel blocks, the last one partial
+    struct Restore {
+      int64_t saved = conv_detail::temporal_winograd_bytes();
+      ~Restore() { conv_detail::temporal_winograd_bytes() = saved; }
+    } restore;
+    conv_detail::temporal_winograd_bytes() = 1;  // one panel of pixels per block
+    EXPECT_EQ(run_temporal({2, 5, 9, 13, 150, DType::F32, Act::SiLU, true}, seed++), 0);
+    EXPECT_EQ(run_temporal({1, 4, 33, 40, 97, DType::F16}, seed++), 0);
+  }
+  EXPECT_EQ(conv_temporal3_algorithm(1, 64, 64, 4096), "direct");
+  EXPECT_EQ(conv_temporal3_algorithm(16, 64, 64, 4096), "winograd F(2,3)");
+  set_conv_algo(ConvAlgo::Auto);
+  EXPECT_EQ(conv_temporal3_algorithm(16, 128, 128, 65536), "winograd F(2,3)");  // the VAE decoder's top level
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "winograd F(2,3)");  // the U-Net's 4x4 frames
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 8), "direct");            // few pixels per frame
+  EXPECT_EQ(conv_temporal3_algorithm(16, 3, 128, 65536), "direct");              // few channels
+  EXPECT_EQ(run_temporal({1, 16, 24, 20, 300, DType::F16}, seed++), 0);
 }
 
 TEST_P(ConvTest, Temporal) {

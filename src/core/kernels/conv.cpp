@@ -20,11 +20,6 @@ namespace {
 
 int g_conv_algo = -1;  // -1: not chosen yet (EGOPD_CONV on first use)
 
-void check_weight(const Operand& w, const char* what) {
-  if (w.dtype != DType::F32 && w.dtype != DType::F16 && w.dtype != DType::BF16 && w.dtype != DType::I8)
-    throw Error(std::string(what) + ": unsupported weight dtype " + dtype_name(w.dtype));
-  if (w.dtype == DType::I8 && !w.scale) throw Error(std::string(what) + ": I8 weight has no scale");
-}
 
 // Implicit im2col of one frame: B(k, n) with k = (c*kh + ky)*kw + kx, n = oy*ow + ox.
 struct Im2colB : gemm_detail::BSource {
@@ -64,77 +59,6 @@ struct Im2colB : gemm_detail::BSource {
         kx = 0;
         if (++ky == g.kh) ky = 0, ++c;
       }
-    }
-  }
-};
-
-// Temporal conv weight [cout, cin, 3] seen as A [cout, ntaps*cin] with column kk = (tap - tap0)*cin + c.
-struct TemporalA : gemm_detail::ASource {
-  Operand wt;
-  int64_t cin, tap0;
-  TemporalA(const Operand& w, int64_t cin_, int64_t tap0_) : wt(w), cin(cin_), tap0(tap0_) {}
-  void pack(const gemm_detail::GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc,
-            float* dst) const override {
-    const int MR = path.mr;
-    const bool fast = mr == MR && wt.dtype != DType::I8 && path.pack_a_temporal;
-    for (int64_t k = k0; k < k0 + kc;) {  // one run per tap
-      const int64_t tap = tap0 + k / cin, c = k % cin, run = std::min(k0 + kc, (k / cin + 1) * cin) - k;
-      float* d = dst + (k - k0) * MR;
-      const int64_t done = fast ? path.pack_a_temporal(wt.data, wt.dtype, cin, m0, tap, c, run, d) : 0;
-      pack_scalar(MR, m0, mr, tap, c + done, run - done, d + done * MR);
-      k += run;
-    }
-  }
-
-  // dst[k*MR + i] = W[m0 + i, c0 + k, tap] for k < len (rows >= mr zero).
-  void pack_scalar(int MR, int64_t m0, int mr, int64_t tap, int64_t c0, int64_t len, float* dst) const {
-    const size_t es = dtype_size(wt.dtype);
-    for (int i = 0; i < MR; ++i) {
-      if (i >= mr) {
-        for (int64_t k = 0; k < len; ++k) dst[k * MR + i] = 0.0f;
-        continue;
-      }
-      const int64_t o = m0 + i;
-      const char* row = static_cast<const char*>(wt.data) + size_t(o * 3 * cin) * es;
-      const float scale = wt.dtype == DType::I8 ? wt.scale[o] : 1.0f;
-      for (int64_t k = 0; k < len; ++k) {
-        const char* e = row + size_t((c0 + k) * 3 + tap) * es;
-        float v;
-        switch (wt.dtype) {
-          case DType::F32: v = *reinterpret_cast<const float*>(e); break;
-          case DType::F16: v = half_to_float(*reinterpret_cast<const uint16_t*>(e)); break;
-          case DType::BF16: v = bf16_to_float(*reinterpret_cast<const uint16_t*>(e)); break;
-          default: v = float(*reinterpret_cast<const int8_t*>(e)) * scale; break;
-        }
-        dst[k * MR + i] = v;
-      }
-    }
-  }
-};
-
-// Frames t-1, t, t+1 of one video are consecutive [cin, hw] blocks, so B rows kk = (tap - tap0)*cin + c of output
-// frame s are the contiguous rows of x starting at frame s + tap0 - 1; taps that fall outside the video are zero.
-struct TemporalB : gemm_detail::BSource {
-  const float* x;
-  int64_t f, cin, hw, tap0;
-  TemporalB(const float* x_, int64_t f_, int64_t cin_, int64_t hw_, int64_t tap0_)
-      : x(x_), f(f_), cin(cin_), hw(hw_), tap0(tap0_) {}
-  void pack(const gemm_detail::GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
-            float* dst) const override {
-    const int64_t t = seg % f;
-    const int NR = path.nr;
-    for (int64_t k = k0; k < k0 + kc;) {
-      const int64_t tap = tap0 + k / cin;
-      const int64_t run = std::min(k0 + kc, (k / cin + 1) * cin) - k;  // rows of this tap in the block
-      float* d = dst + (k - k0) * NR;
-      const int64_t src_t = t + tap - 1;
-      if (src_t < 0 || src_t >= f) {
-        std::fill(d, d + run * NR, 0.0f);
-      } else {
-        const float* p = x + ((seg + tap - 1) * cin + k % cin) * hw + n0;
-        path.pack_b(p, DType::F32, hw, false, nullptr, run, nr, d);
-      }
-      k += run;
     }
   }
 };
@@ -194,6 +118,12 @@ std::string conv2d_algorithm(const Conv2dGeom& g, int64_t n, int64_t h, int64_t 
 
 namespace conv_detail {
 
+void check_weight(const Operand& w, const char* what) {
+  if (w.dtype != DType::F32 && w.dtype != DType::F16 && w.dtype != DType::BF16 && w.dtype != DType::I8)
+    throw Error(std::string(what) + ": unsupported weight dtype " + dtype_name(w.dtype));
+  if (w.dtype == DType::I8 && !w.scale) throw Error(std::string(what) + ": I8 weight has no scale");
+}
+
 void shift_masks(const ShiftGeom& s, int64_t n0, int nr, uint32_t* masks) {
   // Validity factors into a row part (ky) and a column part (kx): bit j of rows[ky] / cols[kx].
   uint32_t rows[kMaxTaps] = {}, cols[kMaxTaps] = {};
@@ -230,7 +160,7 @@ void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0,
 
 void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
             const Conv2dGeom& g, float* y, Act act, bool accumulate) {
-  check_weight(weight, "conv2d");
+  conv_detail::check_weight(weight, "conv2d");
   const int64_t oh = g.out_h(h), ow = g.out_w(w);
   if (n <= 0 || oh <= 0 || ow <= 0 || g.cout <= 0) return;
   if (use_winograd(g, n, h, w))
@@ -266,28 +196,6 @@ void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weig
     job.b = &b;
     gemm_detail::run_gemm(job);
   }
-}
-
-void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
-                    const float* bias, int64_t cout, float* y, Act act, bool accumulate) {
-  check_weight(weight, "conv_temporal3");
-  if (b <= 0 || f <= 0 || hw <= 0 || cout <= 0) return;
-  // One frame only: just the centre tap (the others always see zero padding).
-  const int64_t tap0 = f == 1 ? 1 : 0, ntaps = f == 1 ? 1 : 3;
-  TemporalA a(weight, cin, tap0);
-  TemporalB bsrc(x, f, cin, hw, tap0);
-  gemm_detail::GemmJob job;
-  job.M = cout;
-  job.K = ntaps * cin;
-  job.segments = b * f;
-  job.seg_cols = hw;
-  job.a = &a;
-  job.b = &bsrc;
-  job.c = y;
-  job.ldc = hw;
-  job.c_seg_stride = cout * hw;
-  job.ep = Epilogue{bias, true, act, accumulate};
-  gemm_detail::run_gemm(job);
 }
 
 }  // namespace egopd
