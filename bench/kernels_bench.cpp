@@ -198,6 +198,8 @@ BENCHMARK(BM_egopd_conv_temporal3)
     ->Args({1, 16, 512, 512, 1024})  // VAE decoder 32x32
     ->Args({1, 16, 256, 256, 16384})  // VAE decoder 128x128
     ->Args({1, 16, 128, 128, 65536})  // VAE decoder 256x256
+    ->Args({1, 16, 128, 128, 2048})  // ... in the pixel tiles its temporal blocks run
+    ->Args({1, 16, 512, 512, 512})
     ->ArgNames({"b", "f", "cin", "cout", "hw"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);

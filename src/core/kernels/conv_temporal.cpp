@@ -113,11 +113,7 @@ struct WinogradTemporalB : gemm_detail::BSource {
       for (int64_t i = 0; i < kc * NR; ++i) dst[i] *= sb;
       return;
     }
-    thread_local AlignedScratch second;
-    float* const tmp = second.get(size_t(kc * NR));
-    path.pack_b(frame(ta), DType::F32, hw, false, nullptr, kc, nr, dst);
-    path.pack_b(frame(tb), DType::F32, hw, false, nullptr, kc, nr, tmp);
-    for (int64_t i = 0; i < kc * NR; ++i) dst[i] += sb * tmp[i];
+    path.pack_b_sum(frame(ta), frame(tb), sb, hw, kc, nr, dst);
   }
 };
 

@@ -8,6 +8,8 @@
 #pragma GCC target("avx2,fma,f16c")
 #include <immintrin.h>
 
+#include "core/kernels/pack_sum.h"
+
 #include "core/kernels/avx2/pack.h"
 #include "core/kernels/avx2/vec_math.h"
 
@@ -389,6 +391,10 @@ void pack_a_avx2(const void* p, DType dt, int64_t ld, bool trans, const float* s
   if (done < kc)
     pack_a_portable<MR>(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, false, scale, mr, kc - done,
                     dst + done * MR);
+}
+
+void pack_b_sum_avx2(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst) {
+  pack_b_sum_rows<NR>(a, b, sb, ld, kc, nr, dst);
 }
 
 }  // namespace egopd::gemm_detail

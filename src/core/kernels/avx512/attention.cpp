@@ -7,8 +7,6 @@
 #include <cstdint>
 
 #pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-// GCC 12 flags the deliberately undefined pass-through operand inside unmasked AVX-512 intrinsics (_mm512_max_ps).
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <immintrin.h>
 
 #include "core/kernels/attention.h"

@@ -9,6 +9,8 @@
 #pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
 #include <immintrin.h>
 
+#include "core/kernels/pack_sum.h"
+
 #include "core/kernels/avx2/pack.h"
 #include "core/kernels/avx512/tile.h"
 
@@ -356,6 +358,10 @@ void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
                  [](const void* q, DType t, int64_t l, const float* s, int64_t k, int n, float* d) {
                    pack_a_portable<MR>(q, t, l, false, s, n, k, d);
                  });
+}
+
+void pack_b_sum_avx512(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst) {
+  pack_b_sum_rows<NR>(a, b, sb, ld, kc, nr, dst);
 }
 
 }  // namespace egopd::gemm_detail
