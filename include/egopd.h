@@ -69,7 +69,7 @@ typedef struct egopd_load_options {
   const char* template_path; /* hand template JSON; NULL: the shipped (synthetic) template */
   egopd_log_fn log;          /* NULL: quiet */
   void* log_user;
-  const char* conv;          /* 3x3 convolution algorithm of the model's calls: NULL (EGOPD_CONV, else "auto"),
+  const char* conv;          /* 3x3 and temporal convolution algorithm: NULL (EGOPD_CONV, else "auto"),
                                 "direct", "winograd" or "auto" (egopd --help, --conv) */
 } egopd_load_options;
 

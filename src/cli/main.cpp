@@ -120,7 +120,7 @@ const Command kCommands[] = {
      "egopd bench TARGET [options] [--threads T] [--conv direct|winograd|auto] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
      "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d.\n"
-     "  --conv: the 3x3 convolution algorithm (see egopd --help); the report records it."},
+     "  --conv: the convolution algorithm (see egopd --help); the report records it."},
 };
 
 int cmd_bench(const Args& a) {
@@ -144,10 +144,10 @@ void print_help() {
   std::printf(
       "\ncommon options:\n"
       "  --threads N   worker threads (default: EGOPD_THREADS, else the number of physical cores)\n"
-      "  --conv direct|winograd|auto   3x3 stride-1 convolutions (predict, counterfactual, batch, bench; default\n"
-      "                auto): direct, Winograd F(4x4,3x3) (F(2x2,3x3) on frames under 8 pixels), or auto:\n"
-      "                Winograd on layers with 16+ channels, 4x4+ frames and 512+ pixels over all frames (256+\n"
-      "                under 8x8), else direct.\n"
+      "  --conv direct|winograd|auto   3x3 stride-1 and temporal (3,1,1) convolutions (predict, counterfactual,\n"
+      "                batch, bench; default auto): direct, Winograd (F(4x4,3x3), F(2x2,3x3) on frames under 8\n"
+      "                pixels; F(2,3) along time), or auto: Winograd on layers with 16+ channels, 4x4+ frames and\n"
+      "                512+ pixels over all frames (256+ under 8x8; temporal: 16+ pixels per frame), else direct.\n"
       "  --precision fp32|bf16|int8   arithmetic of the linear layers and convolutions (predict, counterfactual,\n"
       "                batch, bench, forward; default fp32). bf16: operands rounded to bfloat16, float32 sums;\n"
       "                vdpbf16ps on CPUs with AVX512-BF16, an exact but slower emulation elsewhere. int8: operands\n"
