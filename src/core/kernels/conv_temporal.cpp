@@ -11,12 +11,11 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <vector>
 
 #include "core/kernels/conv.h"
 #include "core/kernels/conv_internal.h"
-#include "core/kernels/elementwise.h"
 #include "core/kernels/gemm_internal.h"
+#include "core/kernels/winograd_internal.h"
 #include "core/memory.h"
 
 namespace egopd {
@@ -186,33 +185,30 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
       job.c_seg_stride = cout * nb;
       gemm_detail::run_gemm(job);
     }
-    // Output transform, bias, activation and residual, one row of n pixels of one output frame at a time.
-#pragma omp parallel if (segs * cout * n >= 16384 && !omp_in_parallel())
-    {
-      std::vector<float> row(static_cast<size_t>(n));
-#pragma omp for schedule(static)
-      for (int64_t r = 0; r < segs * cout * 2; ++r) {
-        const int64_t s = r / (2 * cout), o = (r / 2) % cout, odd = r % 2;
-        const int64_t bi = s / pairs, t = 2 * (s % pairs) + odd;
-        if (t >= f) continue;
-        const float* m0 = Mb + (s * cout + o) * nb;
-        const int64_t mi = segs * cout * nb;  // floats between M_i and M_i+1
-        const float bv = bias ? bias[o] : 0.0f;
+    // Output transform, bias, activation and residual, one row of n pixels of one output frame at a time, in
+    // chunks on the stack (no allocation per call: a batch run's memory must stay flat).
+    constexpr int64_t kChunk = 256;
+#pragma omp parallel for schedule(static) if (segs * cout * n >= 16384 && !omp_in_parallel())
+    for (int64_t r = 0; r < segs * cout * 2; ++r) {
+      const int64_t s = r / (2 * cout), o = (r / 2) % cout, odd = r % 2;
+      const int64_t bi = s / pairs, t = 2 * (s % pairs) + odd;
+      if (t >= f) continue;
+      const int64_t mi = segs * cout * nb;  // floats between M_i and M_i+1
+      const float bv = bias ? bias[o] : 0.0f;
+      float* dst = y + ((bi * f + t) * cout + o) * hw + px0;
+      for (int64_t j0 = 0; j0 < n; j0 += kChunk) {
+        const int64_t len = std::min(kChunk, n - j0);
+        const float* m0 = Mb + (s * cout + o) * nb + j0;
+        alignas(64) float v[kChunk];
         if (odd)
-          for (int64_t j = 0; j < n; ++j) row[size_t(j)] = m0[mi + j] - m0[2 * mi + j] - m0[3 * mi + j] + bv;
+          for (int64_t j = 0; j < len; ++j) v[j] = m0[mi + j] - m0[2 * mi + j] - m0[3 * mi + j] + bv;
         else
-          for (int64_t j = 0; j < n; ++j) row[size_t(j)] = m0[j] + m0[mi + j] + m0[2 * mi + j] + bv;
-        switch (act) {
-          case Act::SiLU: silu_inplace(row.data(), n); break;
-          case Act::GELU: gelu_inplace(row.data(), n); break;
-          case Act::QuickGELU: quick_gelu_inplace(row.data(), n); break;
-          default: break;
-        }
-        float* dst = y + ((bi * f + t) * cout + o) * hw + px0;
+          for (int64_t j = 0; j < len; ++j) v[j] = m0[j] + m0[mi + j] + m0[2 * mi + j] + bv;
+        wino_detail::apply_act_inplace(act, v, len);
         if (accumulate)
-          for (int64_t j = 0; j < n; ++j) dst[j] += row[size_t(j)];
+          for (int64_t j = 0; j < len; ++j) dst[j0 + j] += v[j];
         else
-          std::copy_n(row.data(), n, dst);
+          std::copy_n(v, len, dst + j0);
       }
     }
   }
