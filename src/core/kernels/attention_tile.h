@@ -3,10 +3,9 @@
 // avx512/attention.cpp): pack the query tile, then per key tile compute S^T = K (c Q)^T, mask (causal), update the
 // online softmax down the columns, rescale the rows whose running max rose and accumulate P·V; finally divide by
 // the running sums. c = scale * log2(e), so the kernels exponentiate with exp2. Include after the kernel file's
-// `#pragma GCC target`. K supplies the vector code:
+// `#pragma GCC target` (AVX2 or wider: the query tile is packed by avx2/transpose.h). K supplies the vector code:
 //   K::kBQ, K::kBK                          queries and keys per tile
 //   K::kPad                                 output rows are padded to a multiple of this (the vector width)
-//   K::pack_queries(q, q_ld, nq, ncol, dh, c, qt)    qt[d][i] = c q[i][d] (stride kBQ), zero for nq <= i < ncol
 //   K::scores(qt, dh, k, k_ld, nk, ncol, st)         st[j][i] = sum_d k[j][d] qt[d][i] (stride kBQ), i < ncol
 //   K::softmax_columns(st, nk, ncol, m, l, corr)     st -> P^T; running max m, sum l; corr = rescale factors
 //   K::scale_row(o, n, f)                            o[0..n) *= f (n a multiple of kPad)
@@ -15,6 +14,7 @@
 #include <cstdint>
 
 #include "core/kernels/attention.h"
+#include "core/kernels/avx2/transpose.h"
 
 namespace egopd::attention_detail {
 
@@ -45,7 +45,7 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
   const float* k = a.k + b * a.k_bs + h * dh;
   const float* v = a.v + b * a.v_bs + h * dh;
   const int64_t ncol = (nq + 15) / 16 * 16;  // query columns computed (multiple of 16)
-  K::pack_queries(q, a.q_ld, nq, ncol, dh, c, qt);
+  pack_avx2::transpose_scaled(q, a.q_ld, nq, dh, c, qt, kBQ, ncol);  // qt[d][i] = c q[i][d], zero for i >= nq
   for (int64_t i = 0; i < nq * dhp; ++i) o[i] = 0.0f;
   for (int64_t i = 0; i < ncol; ++i) m[i] = -__builtin_inff(), l[i] = 0.0f;
 

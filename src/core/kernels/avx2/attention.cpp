@@ -13,7 +13,6 @@
 
 #include "core/kernels/attention.h"
 #include "core/kernels/attention_tile.h"
-#include "core/kernels/avx2/transpose.h"
 #include "core/kernels/avx2/vec_math.h"
 
 namespace egopd::avx2 {
@@ -171,23 +170,15 @@ static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float
 
 struct Kernel {
   static constexpr int64_t kBQ = avx2::kBQ, kBK = avx2::kBK, kPad = 8;
-  static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-    pack_avx2::transpose_scaled(q, q_ld, nq, dh, c, qt, kBQ, ncol);
-  }
   static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
     for (int64_t i0 = 0; i0 < ncol; i0 += 16) score_rows(qt + i0, dh, k, k_ld, nk, st + i0);
   }
-  static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
-    avx2::softmax_columns(st, nk, ncol, m, l, corr);
-  }
+  static constexpr auto softmax_columns = avx2::softmax_columns;
   static void scale_row(float* o, int64_t n, float f) {
     const __m256 vf = _mm256_set1_ps(f);
     for (int64_t d = 0; d < n; d += 8) _mm256_storeu_ps(o + d, _mm256_mul_ps(_mm256_loadu_ps(o + d), vf));
   }
-  static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, int64_t dh, int64_t rows, float* o,
-                      int64_t o_ld) {
-    avx2::pv_rows(pt, nk, v, v_ld, dh, rows, o, o_ld);
-  }
+  static constexpr auto pv_rows = avx2::pv_rows;
   static void store_row(float* dst, const float* o, int64_t dh, float f) {
     const __m256 vf = _mm256_set1_ps(f);
     int64_t d = 0;

@@ -11,7 +11,6 @@
 
 #include "core/kernels/attention.h"
 #include "core/kernels/attention_tile.h"
-#include "core/kernels/avx2/transpose.h"
 #include "core/kernels/avx512/vec_math.h"
 
 namespace egopd::avx512 {
@@ -28,30 +27,40 @@ constexpr int kPV = 4;       // P·V micro-tile channel vectors (64 channels)
 
 inline __mmask16 lanes(int64_t n) { return tail_mask16(n < 16 ? n : 16); }
 
-// S^T[r][0..16*NC) = sum_d K[r][d] * Qt[d][0..16*NC) for R key rows; qt points at Qt[0][i0] (stride kBQ).
-template <int R, int NC>
-inline void score_block(const float* qt, int64_t dh, const float* k, int64_t k_ld, float* st) {
+// The one micro-tile of both products: C[r][0..16*NC) (+)= sum_j A(r, j) * B[j][0..16*NC) for R rows, A(r, j) =
+// a[r * a_rs + j * a_js] broadcast, B rows at stride b_ld with the last vector masked by `last`; C starts from zero
+// (scores) or from memory (P·V accumulators).
+template <int R, int NC, bool kLoadC>
+inline void bcast_tile(const float* a, int64_t a_rs, int64_t a_js, const float* b, int64_t b_ld, __mmask16 last,
+                       int64_t n, float* c, int64_t c_ld) {
   __m512 acc[R][NC];
 #pragma GCC unroll 12
   for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q) acc[r][q] = kLoadC ? _mm512_loadu_ps(c + r * c_ld + q * 16) : _mm512_setzero_ps();
 #pragma GCC unroll 2
-    for (int c = 0; c < NC; ++c) acc[r][c] = _mm512_setzero_ps();
-#pragma GCC unroll 2
-  for (int64_t d = 0; d < dh; ++d) {
-    __m512 qv[NC];
-#pragma GCC unroll 2
-    for (int c = 0; c < NC; ++c) qv[c] = _mm512_loadu_ps(qt + d * kBQ + c * 16);
+  for (int64_t j = 0; j < n; ++j) {
+    __m512 bv[NC];
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q)
+      bv[q] = q == NC - 1 ? _mm512_maskz_loadu_ps(last, b + j * b_ld + q * 16) : _mm512_loadu_ps(b + j * b_ld + q * 16);
 #pragma GCC unroll 12
     for (int r = 0; r < R; ++r) {
-      const __m512 kb = _mm512_set1_ps(k[r * k_ld + d]);
-#pragma GCC unroll 2
-      for (int c = 0; c < NC; ++c) acc[r][c] = _mm512_fmadd_ps(kb, qv[c], acc[r][c]);
+      const __m512 av = _mm512_set1_ps(a[r * a_rs + j * a_js]);
+#pragma GCC unroll 4
+      for (int q = 0; q < NC; ++q) acc[r][q] = _mm512_fmadd_ps(av, bv[q], acc[r][q]);
     }
   }
 #pragma GCC unroll 12
   for (int r = 0; r < R; ++r)
-#pragma GCC unroll 2
-    for (int c = 0; c < NC; ++c) _mm512_storeu_ps(st + r * kBQ + c * 16, acc[r][c]);
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q) _mm512_storeu_ps(c + r * c_ld + q * 16, acc[r][q]);
+}
+
+// S^T[r][0..16*NC) = sum_d K[r][d] * Qt[d][0..16*NC) for R key rows; qt points at Qt[0][i0] (stride kBQ).
+template <int R, int NC>
+inline void score_block(const float* qt, int64_t dh, const float* k, int64_t k_ld, float* st) {
+  bcast_tile<R, NC, false>(k, k_ld, 1, qt, kBQ, 0xffff, dh, st, kBQ);
 }
 
 template <int NC>
@@ -80,28 +89,7 @@ void score_rows(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64
 template <int R, int NV>
 inline void pv_block(const float* pt, int64_t nk, const float* v, int64_t v_ld, __mmask16 last, float* o,
                      int64_t o_ld) {
-  __m512 acc[R][NV];
-#pragma GCC unroll 6
-  for (int r = 0; r < R; ++r)
-#pragma GCC unroll 4
-    for (int c = 0; c < NV; ++c) acc[r][c] = _mm512_loadu_ps(o + r * o_ld + c * 16);
-#pragma GCC unroll 2
-  for (int64_t j = 0; j < nk; ++j) {
-    __m512 vv[NV];
-#pragma GCC unroll 4
-    for (int c = 0; c < NV; ++c)
-      vv[c] = c == NV - 1 ? _mm512_maskz_loadu_ps(last, v + j * v_ld + c * 16) : _mm512_loadu_ps(v + j * v_ld + c * 16);
-#pragma GCC unroll 6
-    for (int r = 0; r < R; ++r) {
-      const __m512 p = _mm512_set1_ps(pt[j * kBQ + r]);
-#pragma GCC unroll 4
-      for (int c = 0; c < NV; ++c) acc[r][c] = _mm512_fmadd_ps(p, vv[c], acc[r][c]);
-    }
-  }
-#pragma GCC unroll 6
-  for (int r = 0; r < R; ++r)
-#pragma GCC unroll 4
-    for (int c = 0; c < NV; ++c) _mm512_storeu_ps(o + r * o_ld + c * 16, acc[r][c]);
+  bcast_tile<R, NV, true>(pt, 1, kBQ, v, v_ld, last, nk, o, o_ld);
 }
 
 // All dh channels of R query rows: blocks of 64, then one block of 1-3 vectors (O rows are padded to 16).
@@ -161,25 +149,17 @@ void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, fl
 
 struct Kernel {
   static constexpr int64_t kBQ = avx512::kBQ, kBK = avx512::kBK, kPad = 16;
-  static void pack_queries(const float* q, int64_t q_ld, int64_t nq, int64_t ncol, int64_t dh, float c, float* qt) {
-    pack_avx2::transpose_scaled(q, q_ld, nq, dh, c, qt, kBQ, ncol);
-  }
   static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
     const int64_t ncol32 = ncol / 32 * 32;
     for (int64_t i0 = 0; i0 < ncol32; i0 += 32) score_rows<2>(qt + i0, dh, k, k_ld, nk, st + i0);
     if (ncol32 < ncol) score_rows<1>(qt + ncol32, dh, k, k_ld, nk, st + ncol32);
   }
-  static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
-    avx512::softmax_columns(st, nk, ncol, m, l, corr);
-  }
+  static constexpr auto softmax_columns = avx512::softmax_columns;
   static void scale_row(float* o, int64_t n, float f) {
     const __m512 vf = _mm512_set1_ps(f);
     for (int64_t d = 0; d < n; d += 16) _mm512_storeu_ps(o + d, _mm512_mul_ps(_mm512_loadu_ps(o + d), vf));
   }
-  static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, int64_t dh, int64_t rows, float* o,
-                      int64_t o_ld) {
-    avx512::pv_rows(pt, nk, v, v_ld, dh, rows, o, o_ld);
-  }
+  static constexpr auto pv_rows = avx512::pv_rows;
   static void store_row(float* dst, const float* o, int64_t dh, float f) {
     const __m512 vf = _mm512_set1_ps(f);
     for (int64_t d = 0; d < dh; d += 16) _mm512_mask_storeu_ps(dst + d, lanes(dh - d), _mm512_mul_ps(_mm512_loadu_ps(o + d), vf));
