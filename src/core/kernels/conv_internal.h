@@ -60,8 +60,8 @@ void pack_im2col_shift_neon(const float* xf, const ShiftGeom& s, int64_t k0, int
 
 // 3x3 stride-1 pad-1 float32 convolution x [n, cin, h, w] -> y [n, cout, h, w] whose micro-kernel reads a small
 // window of the input per output tile (no im2col panel), conv2d's epilogue. Returns false, having done nothing, for
-// what it does not take (a width that is not a multiple of 16, packed filters over 16 MiB, accumulate with an
-// activation over several K passes): the implicit GEMM runs those.
+// what it does not take (a width that is not a multiple of 16, packed filters over 16 MiB): the implicit GEMM runs
+// those.
 bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
                            int64_t cin, int64_t cout, float* y, Act act, bool accumulate);
 
