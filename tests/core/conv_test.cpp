@@ -378,17 +378,17 @@ TEST_P(ConvTest, TemporalWinograd) {
       EXPECT_EQ(run_temporal({2, f, 6, 5, hw}, seed++), 0);
       EXPECT_EQ(run_temporal({1, f, 17, 13, hw, DType::F16}, seed++), 0);
     }
-  EXPECT_EQ(run_temporal({1, 4, 700, 8, 40, DType::BF16}, seed++), 0);  // cin > KC: several K passes
+  EXPECT_EQ(run_temporal({1, 4, 700, 8, 40, DType::BF16}, seed++), 0);  // cin > the GEMM's KC
   EXPECT_EQ(run_temporal({2, 3, 20, 40, 70, DType::I8}, seed++), 0);
   EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 5, 30, 7, 65, DType::F16, Act::GELU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);  // one frame: centre tap
-  {  // several pixel blocks, the last one partial
+  {  // one pixel panel per unit of work (else up to 8), the last one partial
     struct Restore {
       int64_t saved = conv_detail::temporal_winograd_bytes();
       ~Restore() { conv_detail::temporal_winograd_bytes() = saved; }
     } restore;
-    conv_detail::temporal_winograd_bytes() = 1;  // one panel of pixels per block
+    conv_detail::temporal_winograd_bytes() = 1;
     EXPECT_EQ(run_temporal({2, 5, 9, 13, 150, DType::F32, Act::SiLU, true}, seed++), 0);
     EXPECT_EQ(run_temporal({1, 4, 33, 40, 97, DType::F16}, seed++), 0);
   }
@@ -396,8 +396,8 @@ TEST_P(ConvTest, TemporalWinograd) {
   EXPECT_EQ(conv_temporal3_algorithm(16, 64, 64, 4096), "winograd F(2,3)");
   set_conv_algo(ConvAlgo::Auto);
   EXPECT_EQ(conv_temporal3_algorithm(16, 128, 128, 65536), "winograd F(2,3)");  // the VAE decoder's top level
-  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "winograd F(2,3)");  // the U-Net's 4x4 frames
-  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 8), "direct");            // few pixels per frame
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 64), "winograd F(2,3)");  // the U-Net's 8x8 frames
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "direct");           // its 4x4 frames: few pixels
   EXPECT_EQ(conv_temporal3_algorithm(16, 3, 128, 65536), "direct");              // few channels
   EXPECT_EQ(run_temporal({1, 16, 24, 20, 300, DType::F16}, seed++), 0);
 }

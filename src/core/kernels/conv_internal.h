@@ -11,8 +11,8 @@ namespace egopd::conv_detail {
 // An Error naming `what` for a weight dtype the convolutions do not take (or an I8 weight without scales).
 void check_weight(const Operand& w, const char* what);
 
-// Scratch budget of the temporal Winograd's products per pixel block (8 MiB; tests shrink it to reach several
-// blocks).
+// Bytes of the transformed-frame panels a thread of the temporal Winograd packs at a time (up to 8 pixel panels in
+// 384 KiB; tests shrink it to one panel).
 int64_t& temporal_winograd_bytes();
 
 constexpr int64_t kMaxTaps = 64;  // kh*kw handled by the shift packer (larger kernels take the gather path)

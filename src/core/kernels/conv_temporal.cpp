@@ -5,9 +5,9 @@
 // F(2,3) (Lavin & Gray), per frame pair p (outputs 2p, 2p+1; inputs d_k = x[2p-1+k], zero outside the video):
 //   V_0 = d_0 - d_2, V_1 = d_1 + d_2, V_2 = d_2 - d_1, V_3 = d_1 - d_3        (input transform, per channel)
 //   U_0 = w_0, U_1 = (w_0 + w_1 + w_2)/2, U_2 = (w_0 - w_1 + w_2)/2, U_3 = w_2  (filter transform, per (o, c))
-//   M_i = U_i · V_i                                                          (four GEMMs [cout, cin] x [cin, px])
+//   M_i = U_i · V_i                                                          (four products [cout, cin] x [cin, px])
 //   y_2p = M_0 + M_1 + M_2,  y_2p+1 = M_1 - M_2 - M_3                        (output transform)
-// V is never stored: the GEMM's B packer forms it from the two frames it combines.
+// V exists only as the micro-kernel's B panels (packed from the two frames each combines), M only as its tiles.
 #include <omp.h>
 
 #include <algorithm>
@@ -17,6 +17,7 @@
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 #include "core/memory.h"
+#include "core/threading.h"
 
 namespace egopd {
 
@@ -108,88 +109,117 @@ struct WinogradTemporalB : gemm_detail::BSource {
   }
 };
 
-// The filter transform (per call, ~cout*cin) is paid back by a third of the GEMM work (~cout*cin*f*hw) from a
-// few pixels on: measured on an AMD EPYC (Zen 5 class), 2 threads, 16 frames, F16 weights: 1.17x on 1280 channels
-// of 4x4 frames, 1.3-1.5x on the U-Net's and the VAE decoder's 256-1024 pixel frames, 1.25x on 128 channels of
-// 256x256 (the products' memory traffic).
-constexpr int64_t kMinPixels = 16;
+// The filter transform (per call, ~cout*cin) is paid back by a third of the multiplications (~cout*cin*f*hw)
+// once a frame has a few pixel panels: measured on an AMD EPYC (Zen 5 class), 2 threads, 16 frames, F16 weights,
+// 1.15-1.6x the direct convolution on the U-Net's and the VAE decoder's frames of 256 pixels and more; on 1280
+// channels of 4x4 frames 0.94x (each unit of 16 pixels reads all four transformed filters, 26 MB).
+constexpr int64_t kMinPixels = 32;
 
 bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
-  if (f < 2 || precision() != Precision::Fp32) return false;  // one frame: the centre tap only; reduced precision
+  // One frame: the centre tap only; reduced precision: the direct GEMM's; no input channel: nothing to transform.
+  if (f < 2 || cin < 1 || precision() != Precision::Fp32) return false;
   const ConvAlgo algo = conv_algo();
   return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= 16 && cout >= 16 && hw >= kMinPixels);
 }
 
 void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                              const float* bias, int64_t cout, float* y, Act act, bool accumulate) {
-  const int64_t pairs = (f + 1) / 2, segs = b * pairs, K = std::max<int64_t>(cin, 1);
-  // U_i [cout, cin] row-major, i = 0..3.
-  thread_local AlignedScratch u_buf, m_buf;
-  float* const U = u_buf.get(size_t(4 * cout * K));
-#pragma omp parallel for schedule(static) if (cout * cin >= 4096 && !omp_in_parallel())
-  for (int64_t o = 0; o < cout; ++o)
-    for (int64_t c = 0; c < K; ++c) {
-      const float w0 = c < cin ? weight_at(weight, cin, o, c, 0) : 0.0f, w1 = c < cin ? weight_at(weight, cin, o, c, 1) : 0.0f,
-                  w2 = c < cin ? weight_at(weight, cin, o, c, 2) : 0.0f;
-      const float h = 0.5f * (w0 + w2);
-      float* u = U + o * K + c;
-      u[0] = w0;
-      u[cout * K] = h + 0.5f * w1;
-      u[2 * cout * K] = h - 0.5f * w1;
-      u[3 * cout * K] = w2;
+  using gemm_detail::GemmPath;
+  const GemmPath& path = gemm_detail::gemm_path();
+  const int MR = path.mr, NR = path.nr;
+  const int64_t pairs = (f + 1) / 2, segs = b * pairs;
+  // The filter transform, straight into the micro-kernel's A panels: panel (i, q) holds rows q*MR .. of U_i,
+  // element (r, c) at [c*MR + r] (rows past cout zero). The taps are packed by the direct convolution's A packer
+  // (vectorised per path), then combined.
+  const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * cin, u_floats = mpanels * panel_floats;
+  thread_local AlignedScratch a_buf, v_buf;
+  const int transform_threads = cout * cin >= 4096 && !omp_in_parallel() ? num_threads() : 1;
+  float* const A = a_buf.get(size_t(4 * u_floats + transform_threads * panel_floats));  // then tap 1 per thread
+  const TemporalA taps(weight, cin, 0);
+#pragma omp parallel num_threads(transform_threads) if (transform_threads > 1)
+  {
+    float* const w1 = A + 4 * u_floats + omp_get_thread_num() * panel_floats;
+#pragma omp for schedule(static)
+    for (int64_t q = 0; q < mpanels; ++q) {
+      const int mr = int(std::min<int64_t>(MR, cout - q * MR));
+      float* const u0 = A + q * panel_floats;
+      float* const u1 = u0 + u_floats;
+      float* const u2 = u1 + u_floats;
+      float* const u3 = u2 + u_floats;
+      taps.pack(path, q * MR, mr, 0, cin, u0);
+      taps.pack(path, q * MR, mr, cin, cin, w1);
+      taps.pack(path, q * MR, mr, 2 * cin, cin, u3);
+      for (int64_t e = 0; e < panel_floats; ++e) {
+        const float h = 0.5f * (u0[e] + u3[e]);
+        u1[e] = h + 0.5f * w1[e];
+        u2[e] = h - 0.5f * w1[e];
+      }
     }
-  // Pixel blocks whose four products M_i [segs, cout, nb] take about temporal_winograd_bytes() (a multiple of the
-  // GEMM's panel width).
-  const int64_t NR = gemm_detail::gemm_path().nr;
-  int64_t nb = conv_detail::temporal_winograd_bytes() / (4 * 4 * segs * cout) / NR * NR;
-  nb = std::clamp<int64_t>(nb, NR, (hw + NR - 1) / NR * NR);
-  float* const Mb = m_buf.get(size_t(4 * segs * cout * nb));
+  }
+  // Units of work: one pixel panel (NR pixels) of one frame pair, whose V_0..V_3 panels are packed once and
+  // multiplied by every row panel of the U_i; a thread takes `group` units at a time (their panels take about
+  // temporal_winograd_bytes(), in L2), so each A panel it reads serves them all. The four products of a micro-tile
+  // never leave the stack: the output transform, bias, activation and residual follow at once (the products
+  // written to memory and read back took most of the saving on 128-channel layers).
+  const int64_t panels_per_seg = (hw + NR - 1) / NR, units = segs * panels_per_seg;
+  const int64_t unit_floats = 4 * cin * NR;
+  const int64_t group = std::clamp<int64_t>(conv_detail::temporal_winograd_bytes() / (unit_floats * 4), 1, 8);
+  const int64_t ngroups = (units + group - 1) / group;
+  int threads = omp_in_parallel() ? 1 : num_threads();
+  if (2.0 * double(segs * hw) * double(4 * cout * cin) < gemm_detail::kSerialFlops) threads = 1;
+  threads = int(std::min<int64_t>(threads, ngroups));
+  float* const V = v_buf.get(size_t(threads * group * unit_floats));
   // {ka, kb, sb}: V_0 = d0 - d2, V_1 = d1 + d2, V_2 = d2 - d1, V_3 = d1 - d3.
   constexpr struct { int ka, kb; float sb; } kV[4] = {{0, 2, -1.0f}, {1, 2, 1.0f}, {2, 1, -1.0f}, {1, 3, -1.0f}};
-  for (int64_t px0 = 0; px0 < hw; px0 += nb) {
-    const int64_t n = std::min(nb, hw - px0);
-    for (int i = 0; i < 4; ++i) {
-      const Operand ua = f32_operand(U + i * cout * K, K);
-      gemm_detail::OperandA a(ua);
-      WinogradTemporalB v;
-      v.x = x, v.f = f, v.cin = cin, v.hw = hw, v.pairs = pairs, v.px0 = px0;
-      v.ka = kV[i].ka, v.kb = kV[i].kb, v.sb = kV[i].sb;
-      gemm_detail::GemmJob job;
-      job.M = cout;
-      job.K = K;
-      job.segments = segs;
-      job.seg_cols = n;
-      job.a = &a;
-      job.b = &v;
-      job.c = Mb + i * segs * cout * nb;
-      job.ldc = nb;
-      job.c_seg_stride = cout * nb;
-      gemm_detail::run_gemm(job);
-    }
-    // Output transform, bias, activation and residual, one row of n pixels of one output frame at a time, in
-    // chunks on the stack (no allocation per call: a batch run's memory must stay flat).
-    constexpr int64_t kChunk = 256;
-#pragma omp parallel for schedule(static) if (segs * cout * n >= 16384 && !omp_in_parallel())
-    for (int64_t r = 0; r < segs * cout * 2; ++r) {
-      const int64_t s = r / (2 * cout), o = (r / 2) % cout, odd = r % 2;
-      const int64_t bi = s / pairs, t = 2 * (s % pairs) + odd;
-      if (t >= f) continue;
-      const int64_t mi = segs * cout * nb;  // floats between M_i and M_i+1
-      const float bv = bias ? bias[o] : 0.0f;
-      float* dst = y + ((bi * f + t) * cout + o) * hw + px0;
-      for (int64_t j0 = 0; j0 < n; j0 += kChunk) {
-        const int64_t len = std::min(kChunk, n - j0);
-        const float* m0 = Mb + (s * cout + o) * nb + j0;
-        alignas(64) float v[kChunk];
-        if (odd)
-          for (int64_t j = 0; j < len; ++j) v[j] = m0[mi + j] - m0[2 * mi + j] - m0[3 * mi + j] + bv;
-        else
-          for (int64_t j = 0; j < len; ++j) v[j] = m0[j] + m0[mi + j] + m0[2 * mi + j] + bv;
-        wino_detail::apply_act_inplace(act, v, len);
-        if (accumulate)
-          for (int64_t j = 0; j < len; ++j) dst[j0 + j] += v[j];
-        else
-          std::copy_n(v, len, dst + j0);
+  WinogradTemporalB v[4];
+  for (int i = 0; i < 4; ++i) {
+    v[i].x = x, v[i].f = f, v[i].cin = cin, v[i].hw = hw, v[i].pairs = pairs, v[i].px0 = 0;
+    v[i].ka = kV[i].ka, v[i].kb = kV[i].kb, v[i].sb = kV[i].sb;
+  }
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+    float* const vb = V + omp_get_thread_num() * group * unit_floats;
+    alignas(64) float m[4][gemm_detail::kMaxMR * gemm_detail::kMaxNR];  // M_i of one micro-tile, row stride NR
+    alignas(64) float out[gemm_detail::kMaxNR];
+    const gemm_detail::TileEpilogue plain;
+#pragma omp for schedule(dynamic)
+    for (int64_t g = 0; g < ngroups; ++g) {
+      const int64_t u0 = g * group, nu = std::min(group, units - u0);
+      for (int64_t u = 0; u < nu; ++u) {
+        const int64_t s = (u0 + u) / panels_per_seg, n0 = (u0 + u) % panels_per_seg * NR;
+        const int nr = int(std::min<int64_t>(NR, hw - n0));
+        for (int i = 0; i < 4; ++i) v[i].pack(path, s, 0, cin, n0, nr, vb + (4 * u + i) * cin * NR);
+      }
+      for (int64_t q = 0; q < mpanels; ++q) {
+        const int64_t m0 = q * MR;
+        const int mr = int(std::min<int64_t>(MR, cout - m0));
+        for (int64_t u = 0; u < nu; ++u) {
+          const int64_t s = (u0 + u) / panels_per_seg, n0 = (u0 + u) % panels_per_seg * NR;
+          const int nr = int(std::min<int64_t>(NR, hw - n0));
+          for (int i = 0; i < 4; ++i)
+            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + (4 * u + i) * cin * NR, m[i], NR, mr, nr,
+                       plain);
+          // y_2p = M_0 + M_1 + M_2, y_2p+1 = M_1 - M_2 - M_3 (the second frame of the last pair may not exist).
+          const int64_t bi = s / pairs, t0 = 2 * (s % pairs);
+          for (int64_t t = t0; t < std::min(t0 + 2, f); ++t)
+            for (int r = 0; r < mr; ++r) {
+              const float* m_0 = m[0] + r * NR;
+              const float* m_1 = m[1] + r * NR;
+              const float* m_2 = m[2] + r * NR;
+              const float* m_3 = m[3] + r * NR;
+              const float bv = bias ? bias[m0 + r] : 0.0f;
+              if (t == t0)
+                for (int j = 0; j < nr; ++j) out[j] = m_0[j] + m_1[j] + m_2[j] + bv;
+              else
+                for (int j = 0; j < nr; ++j) out[j] = m_1[j] - m_2[j] - m_3[j] + bv;
+              wino_detail::apply_act_inplace(act, out, nr);
+              float* dst = y + ((bi * f + t) * cout + m0 + r) * hw + n0;
+              if (accumulate)
+                for (int j = 0; j < nr; ++j) dst[j] += out[j];
+              else
+                std::copy_n(out, nr, dst);
+            }
+        }
       }
     }
   }
@@ -198,7 +228,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
 }  // namespace
 
 int64_t& conv_detail::temporal_winograd_bytes() {
-  static int64_t bytes = int64_t(8) << 20;
+  static int64_t bytes = int64_t(384) << 10;
   return bytes;
 }
 

@@ -25,7 +25,7 @@ constexpr int kMrPortable = 6, kNrPortable = 16;
 constexpr int kMrAvx2 = 6, kNrAvx2 = 16;     // 12 ymm accumulators
 constexpr int kMrAvx512 = 12, kNrAvx512 = 32;  // 24 zmm accumulators: 2 B loads and 12 broadcasts per 24 FMAs
 constexpr int kMrNeon = 8, kNrNeon = 12;       // 24 q-register accumulators: 2 A + 3 B loads per 24 FMLAs
-constexpr int kMaxNR = 32;
+constexpr int kMaxMR = 12, kMaxNR = 32;
 
 // What the micro-kernel does with its MR x NR sum S when storing it to C:
 //   C = act(S + (load_c ? C : 0) + bias) + (add_after ? C : 0), then only the mr x nr valid part is stored.
