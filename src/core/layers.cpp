@@ -39,10 +39,10 @@ TemporalConv3::TemporalConv3(const WeightView& w, const std::string& name, int64
   bias = w.get_f32(name + ".bias", {cout});
 }
 
-void TemporalConv3::forward(const float* x, int64_t b, int64_t f, int64_t hw, float* y, Act act,
-                            bool accumulate) const {
+void TemporalConv3::forward(const float* x, int64_t b, int64_t f, int64_t hw, float* y, Act act, bool accumulate,
+                            int64_t y_stride) const {
   Operand op{weight.data, weight.dtype, cin * 3, false, weight.scale};
-  conv_temporal3(x, b, f, cin, hw, op, bias.data(), cout, y, act, accumulate);
+  conv_temporal3(x, b, f, cin, hw, op, bias.data(), cout, y, act, accumulate, y_stride);
 }
 
 GroupNorm::GroupNorm(const WeightView& w, const std::string& name, int64_t c_, int64_t groups_, float eps_)

@@ -41,8 +41,9 @@ struct TemporalConv3 {
   Tensor bias;
   TemporalConv3() = default;
   TemporalConv3(const WeightView& w, const std::string& name, int64_t cin, int64_t cout);
+  // y_stride: floats between output rows (0: hw), see conv_temporal3.
   void forward(const float* x, int64_t b, int64_t f, int64_t hw, float* y, Act act = Act::None,
-               bool accumulate = false) const;
+               bool accumulate = false, int64_t y_stride = 0) const;
 };
 
 struct GroupNorm {

@@ -226,12 +226,6 @@ void gather_norm_silu(const float* src, int64_t frames, int64_t c, int64_t hw, i
   silu_inplace(tile, frames * c * tn);
 }
 
-// dst[:, :, t0:t0+tn] = tile [rows, tn]
-void scatter_tile(const float* tile, int64_t rows, int64_t hw, int64_t t0, int64_t tn, float* dst) {
-#pragma omp parallel for schedule(static) if (parallel_worth(rows * tn))
-  for (int64_t r = 0; r < rows; ++r) std::memcpy(dst + r * hw + t0, tile + r * tn, size_t(tn) * sizeof(float));
-}
-
 // AlphaBlender with the temporal branch u = s + g: s <- ws·s + wt·u on dst[:, :, t0:t0+tn], g = tile [rows, tn].
 void blend_tile(const float* g, int64_t rows, int64_t hw, int64_t t0, int64_t tn, float ws, float wt, float* dst) {
 #pragma omp parallel for schedule(static) if (parallel_worth(rows * tn))
@@ -258,32 +252,36 @@ void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw
                                         const TemporalMemory& mem) const {
   const int64_t rows = frames * c;
   const int64_t tile = std::clamp<int64_t>(mem.tile_floats / rows, 1, hw);
-  const bool whole = tile == hw && !mem.recompute_conv1;  // one tile: conv1 writes straight into g1
   const size_t nc = static_cast<size_t>(c);
   std::vector<float> scale1(nc), shift1(nc), scale2(nc), shift2(nc);
   Tensor a(Shape{rows * tile}), b(Shape{rows * tile});
 
   video_group_norm_affine(video, frames, hw, norm1, scale1.data(), shift1.data());
-  // dst [F, c, tn] = conv1(SiLU(GN1(video[:, :, t0:t0+tn]))); the temporal conv mixes frames, never pixels
-  const auto conv1_tile = [&](int64_t t0, int64_t tn, float* dst) {
+  // dst [F, c, tn] (rows dst_stride apart) = conv1(SiLU(GN1(video[:, :, t0:t0+tn]))); the temporal conv mixes
+  // frames, never pixels
+  const auto conv1_tile = [&](int64_t t0, int64_t tn, float* dst, int64_t dst_stride) {
     gather_norm_silu(video, frames, c, hw, t0, tn, scale1.data(), shift1.data(), a.data());
-    conv1.forward(a.data(), 1, frames, tn, dst);
+    conv1.forward(a.data(), 1, frames, tn, dst, Act::None, false, dst_stride);
   };
 
   Tensor g1;  // conv1 output of the whole video [F, c, hw], unless it is recomputed
   if (!mem.recompute_conv1) {
-    g1 = Tensor(Shape{frames, c, hw});
+    Tensor* const storage = mem.conv1_storage;
+    if (storage && storage->numel() < rows * hw) {
+      *storage = Tensor();  // the smaller one goes first
+      *storage = Tensor(Shape{rows * hw});
+    }
+    g1 = storage ? Tensor::view(Shape{frames, c, hw}, storage->data()) : Tensor(Shape{frames, c, hw});
     for (int64_t t0 = 0; t0 < hw; t0 += tile) {
       const int64_t tn = std::min(tile, hw - t0);
-      conv1_tile(t0, tn, whole ? g1.data() : b.data());
-      if (!whole) scatter_tile(b.data(), rows, hw, t0, tn, g1.data());
+      conv1_tile(t0, tn, g1.data() + t0, hw);  // straight into its columns of g1
     }
     video_group_norm_affine(g1.data(), frames, hw, norm2, scale2.data(), shift2.data());
   } else {
     GroupMoments moments(norm2.groups);
     for (int64_t t0 = 0; t0 < hw; t0 += tile) {
       const int64_t tn = std::min(tile, hw - t0);
-      conv1_tile(t0, tn, b.data());
+      conv1_tile(t0, tn, b.data(), tn);
       moments.add(b.data(), frames, c, tn);
     }
     moments.affine(norm2, double(frames * (c / norm2.groups) * hw), scale2.data(), shift2.data());
@@ -293,7 +291,7 @@ void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw
   for (int64_t t0 = 0; t0 < hw; t0 += tile) {
     const int64_t tn = std::min(tile, hw - t0);
     if (mem.recompute_conv1) {  // video[:, :, t0:t0+tn] is still unblended: conv1 sees the same input again
-      conv1_tile(t0, tn, b.data());
+      conv1_tile(t0, tn, b.data(), tn);
       gather_norm_silu(b.data(), frames, c, tn, 0, tn, scale2.data(), shift2.data(), a.data());
     } else {
       gather_norm_silu(g1.data(), frames, c, hw, t0, tn, scale2.data(), shift2.data(), a.data());

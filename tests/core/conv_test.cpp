@@ -142,6 +142,7 @@ struct TemporalCase {
   bool accumulate = false;
   bool bf16 = false;
   bool int8 = false;
+  int64_t y_stride = 0;  // floats between output rows (0: hw); the columns past hw must stay untouched
 };
 
 int run_temporal(const TemporalCase& c, uint32_t seed) {
@@ -149,16 +150,17 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   const std::vector<float> x = random_vec(size_t(c.b * c.f * c.cin * c.hw), rng);
   const StoredWeight wt(size_t(c.cout * c.cin * 3), c.dt, rng, size_t(c.cin * 3));  // [cout, cin, 3, 1, 1]
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
-  std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * c.hw), rng);
+  const int64_t ys = c.y_stride > 0 ? c.y_stride : c.hw;
+  std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * ys), rng);
   const std::vector<float> y0 = y;
   set_precision(precision_of(c.bf16, c.int8));
   const bool winograd = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw) != "direct";
   conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
-                 c.accumulate);
+                 c.accumulate, c.y_stride);
   set_precision(Precision::Fp32);
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
-  std::vector<double> ref(y.size()), tol(y.size());
+  std::vector<double> ref(y0.begin(), y0.end()), tol(y.size(), 0.0);  // the gaps between rows: exactly y0
   const std::vector<double> w_max = row_max(wt.value, c.cout, c.cin * 3);
   for (int64_t bi = 0; bi < c.b; ++bi)
     for (int64_t t = 0; t < c.f; ++t)
@@ -176,7 +178,7 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
               sa += std::fabs(v);
               q8.add(wv, xv);
             }
-          const size_t idx = size_t(((bi * c.f + t) * c.cout + o) * c.hw + p);
+          const size_t idx = size_t(((bi * c.f + t) * c.cout + o) * ys + p);
           double r = act_ref(c.act, s);
           const double lip = c.act == Act::None ? 1.0 : 1.2;
           double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
@@ -383,6 +385,10 @@ TEST_P(ConvTest, TemporalWinograd) {
   EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 5, 30, 7, 65, DType::F16, Act::GELU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);  // one frame: centre tap
+  for (int64_t f : {3, 4}) {  // rows of 70 pixels in a video of 100 (a tile of a larger frame)
+    EXPECT_EQ(run_temporal({2, f, 20, 14, 70, DType::F16, Act::None, false, false, false, 100}, seed++), 0);
+    EXPECT_EQ(run_temporal({1, f, 9, 13, 33, DType::F32, Act::SiLU, true, false, false, 40}, seed++), 0);
+  }
   {  // one pixel panel per unit of work (else up to 8), the last one partial
     struct Restore {
       int64_t saved = conv_detail::temporal_winograd_bytes();
@@ -415,6 +421,8 @@ TEST_P(ConvTest, Temporal) {
   EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({2, 3, 140, 7, 9, DType::F16, Act::GELU, true}, seed++), 0);
   EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({2, 3, 20, 14, 70, DType::F16, Act::None, false, false, false, 100}, seed++), 0);
+  EXPECT_EQ(run_temporal({1, 5, 9, 13, 33, DType::F32, Act::SiLU, true, false, false, 40}, seed++), 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::ValuesIn(test::kAllKernelPaths),

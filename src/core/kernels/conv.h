@@ -42,10 +42,12 @@ std::string conv2d_algorithm(const Conv2dGeom& g, int64_t n, int64_t h, int64_t 
 
 // Temporal convolution, kernel (3,1,1), padding (1,0,0) with zeros in time, on frame-major activations:
 // x [b*f, cin, hw] -> y [b*f, cout, hw], y[b,t,o] = bias[o] + sum_{c,k} W[o,c,k] x[b,t+k-1,c].
-// weight is the stored [cout, cin, 3, 1, 1] tensor. Under ConvAlgo Winograd, or Auto on 16+ pixels per frame and
+// weight is the stored [cout, cin, 3, 1, 1] tensor. Under ConvAlgo Winograd, or Auto on 32+ pixels per frame and
 // 16+ channels, float32 compute with two frames or more: Winograd F(2,3) along time (conv_temporal.cpp).
+// y_stride: floats between consecutive output rows (0: hw), e.g. to write a tile of pixels into a whole video.
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
-                    const float* bias, int64_t cout, float* y, Act act = Act::None, bool accumulate = false);
+                    const float* bias, int64_t cout, float* y, Act act = Act::None, bool accumulate = false,
+                    int64_t y_stride = 0);
 
 // What conv_temporal3 runs for this call under the current settings: "direct" or "winograd F(2,3)".
 std::string conv_temporal3_algorithm(int64_t f, int64_t cin, int64_t cout, int64_t hw);

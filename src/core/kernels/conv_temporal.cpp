@@ -11,7 +11,9 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <string>
 
+#include "core/error.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
@@ -123,7 +125,7 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
 }
 
 void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
-                             const float* bias, int64_t cout, float* y, Act act, bool accumulate) {
+                             const float* bias, int64_t cout, float* y, Act act, bool accumulate, int64_t ys) {
   using gemm_detail::GemmPath;
   const GemmPath& path = gemm_detail::gemm_path();
   const int MR = path.mr, NR = path.nr;
@@ -213,7 +215,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
               else
                 for (int j = 0; j < nr; ++j) out[j] = m_1[j] - m_2[j] - m_3[j] + bv;
               wino_detail::apply_act_inplace(act, out, nr);
-              float* dst = y + ((bi * f + t) * cout + m0 + r) * hw + n0;
+              float* dst = y + ((bi * f + t) * cout + m0 + r) * ys + n0;
               if (accumulate)
                 for (int j = 0; j < nr; ++j) dst[j] += out[j];
               else
@@ -237,10 +239,13 @@ std::string conv_temporal3_algorithm(int64_t f, int64_t cin, int64_t cout, int64
 }
 
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
-                    const float* bias, int64_t cout, float* y, Act act, bool accumulate) {
+                    const float* bias, int64_t cout, float* y, Act act, bool accumulate, int64_t y_stride) {
   conv_detail::check_weight(weight, "conv_temporal3");
   if (b <= 0 || f <= 0 || hw <= 0 || cout <= 0) return;
-  if (temporal_winograd(f, cin, cout, hw)) return conv_temporal3_winograd(x, b, f, cin, hw, weight, bias, cout, y, act, accumulate);
+  const int64_t ys = y_stride > 0 ? y_stride : hw;
+  if (ys < hw) throw Error("conv_temporal3: output row stride " + std::to_string(ys) + " < " + std::to_string(hw) + " pixels");
+  if (temporal_winograd(f, cin, cout, hw))
+    return conv_temporal3_winograd(x, b, f, cin, hw, weight, bias, cout, y, act, accumulate, ys);
   // One frame only: just the centre tap (the others always see zero padding).
   const int64_t tap0 = f == 1 ? 1 : 0, ntaps = f == 1 ? 1 : 3;
   TemporalA a(weight, cin, tap0);
@@ -253,8 +258,8 @@ void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t h
   job.a = &a;
   job.b = &bsrc;
   job.c = y;
-  job.ldc = hw;
-  job.c_seg_stride = cout * hw;
+  job.ldc = ys;
+  job.c_seg_stride = cout * ys;
   job.ep = Epilogue{bias, true, act, accumulate};
   gemm_detail::run_gemm(job);
 }
