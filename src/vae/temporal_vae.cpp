@@ -111,20 +111,17 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   const auto done = [&](const std::string& block) {
     if (release_after_use) (block.empty() ? weights : weights.sub(block)).release();
   };
-  Tensor conv1_storage;  // shared by the temporal res-blocks of a level (TemporalMemory::conv1_storage)
-  TemporalMemory mem = temporal_memory;
-  mem.conv1_storage = &conv1_storage;
   Tensor x(Shape{n, top, H, W});
   conv_in.forward(z.data(), n, H, W, x.data());
   done("conv_in");
 
   // mid block: resnets.0 -> attentions.0 -> resnets.1 (diffusers zips resnets[1:] with the single attention)
-  x = mid_resnets[0].forward(std::move(x), batch, frames, H, W, nullptr, mem);
+  x = mid_resnets[0].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
   if (mid_resnets.size() >= 2) {
     Tensor scratch(Shape{mid_attention.scratch_floats(H * W)});
     for (int64_t f = 0; f < n; ++f) mid_attention.forward_frame(x.data() + f * top * H * W, H * W, scratch.data());
     scratch = Tensor();
-    x = mid_resnets[1].forward(std::move(x), batch, frames, H, W, nullptr, mem);
+    x = mid_resnets[1].forward(std::move(x), batch, frames, H, W, nullptr, temporal_memory);
   }
   done("mid_block");
 
@@ -134,8 +131,8 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   for (size_t i = 0; i < up_blocks.size(); ++i) {
     const UpBlock& blk = up_blocks[i];
     for (const auto& r : blk.resnets) {
-      if (pending) H *= 2, W *= 2, conv1_storage = Tensor();  // a larger level: no peak with the last one's
-      x = r.forward(std::move(x), batch, frames, H, W, pending, mem);
+      if (pending) H *= 2, W *= 2;
+      x = r.forward(std::move(x), batch, frames, H, W, pending, temporal_memory);
       if (pending) done("up_blocks." + std::to_string(i - 1));
       pending = nullptr;
     }
@@ -143,7 +140,6 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
     else done("up_blocks." + std::to_string(i));
   }
   EGOPD_CHECK(pending == nullptr, "the last decoder up block has no upsampler");
-  conv1_storage = Tensor();
 
   // conv_norm_out -> SiLU -> conv_out per frame, then time_conv_out over the frames of each video
   const int64_t c0 = cfg.block_out_channels[0], co = cfg.out_channels, hw = H * W;

@@ -266,12 +266,7 @@ void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw
 
   Tensor g1;  // conv1 output of the whole video [F, c, hw], unless it is recomputed
   if (!mem.recompute_conv1) {
-    Tensor* const storage = mem.conv1_storage;
-    if (storage && storage->numel() < rows * hw) {
-      *storage = Tensor();  // the smaller one goes first
-      *storage = Tensor(Shape{rows * hw});
-    }
-    g1 = storage ? Tensor::view(Shape{frames, c, hw}, storage->data()) : Tensor(Shape{frames, c, hw});
+    g1 = Tensor(Shape{frames, c, hw});
     for (int64_t t0 = 0; t0 < hw; t0 += tile) {
       const int64_t tn = std::min(tile, hw - t0);
       conv1_tile(t0, tn, g1.data() + t0, hw);  // straight into its columns of g1

@@ -74,10 +74,6 @@ struct TemporalMemory {
   // false: one whole-video buffer holds conv1's output (GroupNorm 2 needs statistics over all of it);
   // true: no such buffer: conv1 runs twice, once for GroupNorm 2's statistics and once for the output (low memory).
   bool recompute_conv1 = false;
-  // Storage for that buffer that outlives one block (the decoder keeps one per resolution level): the level's
-  // blocks then write pages already mapped instead of faulting in and zeroing fresh ones (2.8 GB of them over a
-  // 16 x 256x256 decode, 1 GB with this). Null: each block allocates its own.
-  Tensor* conv1_storage = nullptr;
 };
 
 // TemporalResnetBlock on one video [F, c, HW] (frame-major, i.e. R5 without moving data): 5-D GroupNorm(32, eps)
