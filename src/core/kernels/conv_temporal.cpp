@@ -91,14 +91,14 @@ struct TemporalB : gemm_detail::BSource {
 // V_i of frame pairs: B(c, n) of segment s = (batch, pair) is sa * d_ka + sb * d_kb at pixel n0_block + n.
 struct WinogradTemporalB : gemm_detail::BSource {
   const float* x;
-  int64_t f, cin, hw, pairs, px0;  // px0: the first pixel of this block
+  int64_t f, cin, hw, pairs;
   int ka, kb;
   float sb;  // sa = 1 for every V_i (V_2 = d_2 - d_1 is written with d_2 first)
   void pack(const gemm_detail::GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
             float* dst) const override {
     const int64_t bi = seg / pairs, p = seg % pairs, NR = path.nr;
     const int64_t ta = 2 * p - 1 + ka, tb = 2 * p - 1 + kb;
-    const auto frame = [&](int64_t t) { return x + ((bi * f + t) * cin + k0) * hw + px0 + n0; };
+    const auto frame = [&](int64_t t) { return x + ((bi * f + t) * cin + k0) * hw + n0; };
     const bool has_a = ta >= 0 && ta < f, has_b = tb >= 0 && tb < f;
     if (!has_a && !has_b) return std::fill(dst, dst + kc * NR, 0.0f);
     if (!has_b) return path.pack_b(frame(ta), DType::F32, hw, false, nullptr, kc, nr, dst);
@@ -173,9 +173,18 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   float* const V = v_buf.get(size_t(threads * group * unit_floats));
   // {ka, kb, sb}: V_0 = d0 - d2, V_1 = d1 + d2, V_2 = d2 - d1, V_3 = d1 - d3.
   constexpr struct { int ka, kb; float sb; } kV[4] = {{0, 2, -1.0f}, {1, 2, 1.0f}, {2, 1, -1.0f}, {1, 3, -1.0f}};
+  // Unit u: frame pair (segment) s, pixels n0 .. n0 + nr - 1.
+  struct Unit {
+    int64_t s, n0;
+    int nr;
+  };
+  const auto unit = [&](int64_t u) {
+    const int64_t n0 = u % panels_per_seg * NR;
+    return Unit{u / panels_per_seg, n0, int(std::min<int64_t>(NR, hw - n0))};
+  };
   WinogradTemporalB v[4];
   for (int i = 0; i < 4; ++i) {
-    v[i].x = x, v[i].f = f, v[i].cin = cin, v[i].hw = hw, v[i].pairs = pairs, v[i].px0 = 0;
+    v[i].x = x, v[i].f = f, v[i].cin = cin, v[i].hw = hw, v[i].pairs = pairs;
     v[i].ka = kV[i].ka, v[i].kb = kV[i].kb, v[i].sb = kV[i].sb;
   }
 #pragma omp parallel num_threads(threads) if (threads > 1)
@@ -188,16 +197,14 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
     for (int64_t g = 0; g < ngroups; ++g) {
       const int64_t u0 = g * group, nu = std::min(group, units - u0);
       for (int64_t u = 0; u < nu; ++u) {
-        const int64_t s = (u0 + u) / panels_per_seg, n0 = (u0 + u) % panels_per_seg * NR;
-        const int nr = int(std::min<int64_t>(NR, hw - n0));
-        for (int i = 0; i < 4; ++i) v[i].pack(path, s, 0, cin, n0, nr, vb + (4 * u + i) * cin * NR);
+        const Unit un = unit(u0 + u);
+        for (int i = 0; i < 4; ++i) v[i].pack(path, un.s, 0, cin, un.n0, un.nr, vb + (4 * u + i) * cin * NR);
       }
       for (int64_t q = 0; q < mpanels; ++q) {
         const int64_t m0 = q * MR;
         const int mr = int(std::min<int64_t>(MR, cout - m0));
         for (int64_t u = 0; u < nu; ++u) {
-          const int64_t s = (u0 + u) / panels_per_seg, n0 = (u0 + u) % panels_per_seg * NR;
-          const int nr = int(std::min<int64_t>(NR, hw - n0));
+          const auto [s, n0, nr] = unit(u0 + u);
           for (int i = 0; i < 4; ++i)
             path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + (4 * u + i) * cin * NR, m[i], NR, mr, nr,
                        plain);

@@ -172,6 +172,16 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
     const int64_t t_lo = tiles * tid / nth, t_hi = tiles * (tid + 1) / nth;
     float* const win = apack + win_at + tid * thread_floats;
     float* const sums = win + win_floats;
+    // Tile t: frame f, pixels n0 .. n0 + nr - 1; its sums for row panel q in the thread's block starting at b0.
+    struct Tile {
+      int64_t f, n0;
+      int nr;
+    };
+    const auto tile_at = [&](int64_t t) {
+      const int64_t n0 = t % tpf * NR;
+      return Tile{t / tpf, n0, int(std::min<int64_t>(NR, plane - n0))};
+    };
+    const auto sums_of = [&](int64_t b0, int64_t t, int64_t q) { return sums + ((t - b0) * mpanels + q) * tile_floats; };
     TileEpilogue te;  // the last pass's: the earlier ones only add into the sums
     te.act = act;
     te.load_c = accumulate && act == Act::None;
@@ -181,12 +191,11 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
       for (int64_t pass = 0; pass < npass; ++pass) {
         const int64_t c0 = pass * cb, nc = std::min(cb, cin - c0);
         for (int64_t t = b0; t < b1; ++t) {
-          const int64_t f = t / tpf, n0 = (t % tpf) * NR;
-          const int nr = int(std::min<int64_t>(NR, plane - n0));
+          const auto [f, n0, nr] = tile_at(t);
           pack_window(x + (f * cin + c0) * plane, plane, h, w, n0, nr, nc, win);
           for (int64_t q = 0; q < mpanels; ++q)
-            window_tile_rows(int(std::min<int64_t>(MR, cout - q * MR)), win, nc, panel(pass, q),
-                             sums + ((t - b0) * mpanels + q) * tile_floats, pass > 0);
+            window_tile_rows(int(std::min<int64_t>(MR, cout - q * MR)), win, nc, panel(pass, q), sums_of(b0, t, q),
+                             pass > 0);
         }
       }
       // The block's outputs, 12 channels at a time: each channel's pixels written in order (12 write streams; tile
@@ -196,11 +205,10 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
         const int mr = int(std::min<int64_t>(MR, cout - m0));
         te.bias_row = bias ? bias + m0 : nullptr;
         for (int64_t t = b0; t < b1; ++t) {
-          const int64_t f = t / tpf, n0 = (t % tpf) * NR;
+          const auto [f, n0, nr] = tile_at(t);
           float* c = y + (f * cout + m0) * plane + n0;
           prefetch_c(c, plane, mr, te);
-          const int nr = int(std::min<int64_t>(NR, plane - n0));
-          store_tile(sums + ((t - b0) * mpanels + q) * tile_floats, c, plane, mr, nr, te);
+          store_tile(sums_of(b0, t, q), c, plane, mr, nr, te);
         }
       }
     }
