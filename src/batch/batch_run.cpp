@@ -152,6 +152,7 @@ BatchSummary run_batch(const BatchOptions& o) {
                e.what());
     }
     sum.rss_after_clip.push_back(int64_t(current_rss_bytes()));
+    sum.heap_after_clip.push_back(int64_t(heap_in_use_bytes()));
   }
   const double clip_seconds = seconds_since(clips_start), total = seconds_since(start);
   // Throughput counts clips that were done, over the whole run including the model load.

@@ -31,7 +31,8 @@ struct BatchOptions {
 
 struct BatchSummary {
   int64_t done = 0, skipped = 0, failed = 0;
-  std::vector<int64_t> rss_after_clip;  // resident set size (bytes) after each clip that ran
+  std::vector<int64_t> rss_after_clip;   // resident set size (bytes) after each clip that ran
+  std::vector<int64_t> heap_after_clip;  // heap in use (bytes, heap_in_use_bytes) after each clip that ran
 };
 
 // Runs the shard; progress and the end-of-run line on stderr. Throws Interrupted on SIGINT/SIGTERM.

@@ -1,6 +1,9 @@
 #include "core/memory.h"
 
 #include <sys/mman.h>
+#if !EGOPD_ADDRESS_SANITIZER && defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <unistd.h>
 
 #include <cstdint>
@@ -9,6 +12,11 @@
 #include <string>
 
 #include "core/error.h"
+
+#if EGOPD_ADDRESS_SANITIZER
+// From the sanitizer runtime (its header, sanitizer/allocator_interface.h, is not installed with every compiler).
+extern "C" size_t __sanitizer_get_current_allocated_bytes();
+#endif
 
 namespace egopd {
 
@@ -23,6 +31,17 @@ static uint64_t status_kb(const char* field) {
 
 uint64_t peak_rss_bytes() { return status_kb("VmHWM"); }
 uint64_t current_rss_bytes() { return status_kb("VmRSS"); }
+
+uint64_t heap_in_use_bytes() {
+#if EGOPD_ADDRESS_SANITIZER
+  return __sanitizer_get_current_allocated_bytes();
+#elif defined(__GLIBC__)
+  const struct mallinfo2 m = ::mallinfo2();
+  return uint64_t(m.uordblks) + uint64_t(m.hblkhd);  // in arenas + in blocks of their own mapping
+#else
+  return 0;
+#endif
+}
 
 bool reset_peak_rss() {
   std::ofstream out("/proc/self/clear_refs");

@@ -2,9 +2,20 @@
 #include <cstddef>
 #include <cstdint>
 
+#if defined(__SANITIZE_ADDRESS__)
+#define EGOPD_ADDRESS_SANITIZER 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define EGOPD_ADDRESS_SANITIZER 1
+#endif
+#endif
+
 namespace egopd {
 uint64_t peak_rss_bytes();     // VmHWM of this process
 uint64_t current_rss_bytes();  // VmRSS
+// Bytes the heap has handed out and not taken back: AddressSanitizer's allocator in sanitizer builds (whose resident
+// set also holds its quarantine of freed blocks), glibc's count over all arenas otherwise; 0 where neither reports.
+uint64_t heap_in_use_bytes();
 // Restarts VmHWM at the current RSS (Linux /proc/self/clear_refs), so peak_rss_bytes() reports the peak of what runs
 // next: per-stage peaks. Returns false where the kernel does not support it.
 bool reset_peak_rss();
