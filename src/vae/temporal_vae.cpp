@@ -111,6 +111,9 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   const auto done = [&](const std::string& block) {
     if (release_after_use) (block.empty() ? weights : weights.sub(block)).release();
   };
+  struct ReleaseBuffer {
+    ~ReleaseBuffer() { release_temporal_buffer(); }  // also when a block throws
+  } release_at_return;
   Tensor x(Shape{n, top, H, W});
   conv_in.forward(z.data(), n, H, W, x.data());
   done("conv_in");
@@ -131,7 +134,7 @@ Tensor TemporalDecoder::forward(const Tensor& z, int64_t frames) const {
   for (size_t i = 0; i < up_blocks.size(); ++i) {
     const UpBlock& blk = up_blocks[i];
     for (const auto& r : blk.resnets) {
-      if (pending) H *= 2, W *= 2;
+      if (pending) H *= 2, W *= 2, release_temporal_buffer();  // a larger level: no peak with the last one's
       x = r.forward(std::move(x), batch, frames, H, W, pending, temporal_memory);
       if (pending) done("up_blocks." + std::to_string(i - 1));
       pending = nullptr;

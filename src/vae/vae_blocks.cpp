@@ -241,6 +241,20 @@ void blend_tile(const float* g, int64_t rows, int64_t hw, int64_t t0, int64_t tn
 
 }  // namespace
 
+namespace {
+struct TemporalBuffer {
+  AlignedScratch storage;
+  size_t used = 0;  // floats handed out since the last release
+};
+thread_local TemporalBuffer tl_temporal_buffer;
+}  // namespace
+
+void release_temporal_buffer() {
+  TemporalBuffer& b = tl_temporal_buffer;
+  if (b.used) discard_pages(b.storage.get(b.used), b.used * sizeof(float));
+  b.used = 0;
+}
+
 TemporalResnetBlock::TemporalResnetBlock(const WeightView& w, int64_t c_, float eps)
     : c(c_),
       norm1(w, "norm1", c_, VaeConfig::kGroups, eps),
@@ -266,7 +280,9 @@ void TemporalResnetBlock::forward_blend(float* video, int64_t frames, int64_t hw
 
   Tensor g1;  // conv1 output of the whole video [F, c, hw], unless it is recomputed
   if (!mem.recompute_conv1) {
-    g1 = Tensor(Shape{frames, c, hw});
+    TemporalBuffer& buf = tl_temporal_buffer;
+    buf.used = std::max(buf.used, size_t(rows * hw));
+    g1 = Tensor::view(Shape{frames, c, hw}, buf.storage.get(size_t(rows * hw)));
     for (int64_t t0 = 0; t0 < hw; t0 += tile) {
       const int64_t tn = std::min(tile, hw - t0);
       conv1_tile(t0, tn, g1.data() + t0, hw);  // straight into its columns of g1
