@@ -157,7 +157,9 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
 
   const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
   const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
-  const int64_t u_xi = co * K, v_xi = tb * K, m_xi = co * tb;  // floats per tile position
+  // Floats per tile position, one cache line more than the matrices need: the transforms read and write all 36 (or
+  // 16) positions of a tile together, which at a power-of-two distance would share one L1 set.
+  const int64_t u_xi = co * K + 16, v_xi = tb * K + 16, m_xi = co * tb + 16;
   const int64_t u_floats = (a2 * u_xi + 15) / 16 * 16, v_floats = (a2 * v_xi + 15) / 16 * 16;
   float* const U = thread_scratch(size_t(u_floats + v_floats + a2 * m_xi));
   float* const V = U + u_floats;
