@@ -251,6 +251,7 @@ TEST_P(WinogradTest, OddAndTinyFrames) {
     EXPECT_EQ(run_wino({1, 1, 1, 2, 2}, t, seed++), 0);     // one channel
     EXPECT_EQ(run_wino({4, 7, 25, 12, 10}, t, seed++), 0);  // sizes not multiple of the tile
     EXPECT_EQ(run_wino({1, 4, 3, 40, 3}, t, seed++), 0);    // tall and narrow
+    EXPECT_EQ(run_wino({1, 5, 3, 6, 301}, t, seed++), 0);   // rows wider than a panel: panels start inside them
   }
 }
 
