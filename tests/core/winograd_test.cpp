@@ -282,12 +282,19 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
     budget.tiles = 1;  // one panel of tiles per block
     budget.min_block_tiles = 1;
     budget.whole_tiles = 0;
+    budget.whole_filter = 0;
     // Blocks of more than L output channels: output-channel blocks outside, V recomputed for each.
     budget.filter = a2 * cin * 4 * 3 * L;
     int64_t cout = 6 * L + 5;
     wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
     ASSERT_TRUE(b.ncb > 1 && b.ntb > 1 && !b.tiles_outside) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
+    // The same with room for the U of all output channels: one block of them, V transformed once per tile block.
+    budget.whole_filter = a2 * cin * 4 * (cout + MR);
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    ASSERT_TRUE(b.ncb == 1 && b.ntb > 1) << b.ncb << " " << b.ntb;
+    EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
+    budget.whole_filter = 0;
     // Blocks of MR (< L) output channels: tile blocks outside, U recomputed for each.
     budget.filter = a2 * cin * 4 * MR;
     cout = 3 * MR + 1;

@@ -64,7 +64,8 @@ const WinogradKernels& winograd_kernels_neon();
 // Scratch budgets of conv2d_winograd (bytes), which choose its blocking; tests shrink them to reach every blocking
 // on small shapes.
 struct WinogradBudgets {
-  int64_t filter = int64_t(16) << 20;       // U: one block of output channels
+  int64_t filter = int64_t(16) << 20;       // U: one block of output channels ...
+  int64_t whole_filter = int64_t(48) << 20;  // ... or all of them, rather than transforming V again per block
   int64_t tiles = int64_t(4) << 20;         // V + M: one block of tiles ...
   int64_t whole_tiles = int64_t(32) << 20;  // ... or all tiles, when several blocks of output channels share them
   int64_t min_block_tiles = 128;            // U is re-read for every block of tiles: >= 64 flops per byte of it
