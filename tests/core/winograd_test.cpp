@@ -252,6 +252,8 @@ TEST_P(WinogradTest, OddAndTinyFrames) {
     EXPECT_EQ(run_wino({4, 7, 25, 12, 10}, t, seed++), 0);  // sizes not multiple of the tile
     EXPECT_EQ(run_wino({1, 4, 3, 40, 3}, t, seed++), 0);    // tall and narrow
     EXPECT_EQ(run_wino({1, 5, 3, 6, 301}, t, seed++), 0);   // rows wider than a panel: panels start inside them
+    EXPECT_EQ(run_wino({1, 3, 2, 8, 62}, t, seed++), 0);    // a row of 16 tiles, 32 with the next: the last
+    EXPECT_EQ(run_wino({1, 3, 2, 5, 126}, t, seed++), 0);   // column of a half-panel is padding
   }
 }
 

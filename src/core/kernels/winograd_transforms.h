@@ -47,10 +47,9 @@ struct Transform<2> {
 template <>
 struct Transform<4> {
   static constexpr int A = 6;
-  template <class T>  // float, or a vector of floats (GCC vector extensions; the avx512 path's input transform)
-  static inline void bt(const T* d, T* v) {
-    const T a = d[4] - 4.0f * d[2], b = d[3] - 4.0f * d[1];  // rows 1, 2
-    const T c = d[4] - d[2], e = 2.0f * (d[3] - d[1]);       // rows 3, 4
+  static inline void bt(const float* d, float* v) {
+    const float a = d[4] - 4.0f * d[2], b = d[3] - 4.0f * d[1];  // rows 1, 2
+    const float c = d[4] - d[2], e = 2.0f * (d[3] - d[1]);       // rows 3, 4
     v[0] = 4.0f * d[0] - 5.0f * d[2] + d[4];
     v[1] = a + b;
     v[2] = a - b;
