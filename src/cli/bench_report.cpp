@@ -49,6 +49,10 @@ void print_bench_report(const BenchReport& r, bool json) {
   const double peak = peak_gflops(r.threads);
   j["percent_of_peak"] = 100.0 * gflops / peak;
   j["peak_gflops"] = peak;
+  // GFLOP are the multiply-adds of the direct float32 algorithm: with Winograd or reduced precision, less or cheaper
+  // arithmetic runs, and GFLOP/s is a speed, not the share of the float32 peak in use.
+  if (conv_algo() != ConvAlgo::Direct || precision() != Precision::Fp32)
+    j["percent_of_peak_is"] = "direct-fp32-equivalent (--conv direct --precision fp32 for the share of the peak)";
   j["threads"] = r.threads;
   j["cpu"] = cpu_info().model;
   j["kernels"] = kernel_path_name(kernel_path());

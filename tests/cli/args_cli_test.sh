@@ -92,5 +92,13 @@ expect_error "--lcm-steps" "$convert" synth --out "$out" --lcm-steps x
 "${p[@]}" --meta "$work/extra.json" --threads 1 2>"$work/extra.log" || fail "extra field: $(tail -1 "$work/extra.log")"
 grep -q "warning: $work/extra.json: field 'category' is not a prompt field" "$work/extra.log" \
   || fail "no warning for the extra field: $(head -3 "$work/extra.log")"
+# A bench report says when its "% of peak" counts direct float32 work that Winograd or bf16/int8 do not run.
+for conv in direct auto; do
+  "$egopd" bench gemm --m 64 --n 64 --k 64 --threads 1 --conv "$conv" --json >"$work/bench_$conv.json" 2>/dev/null \
+    || fail "bench gemm --conv $conv"
+done
+grep -q '"percent_of_peak_is"' "$work/bench_direct.json" && fail "direct fp32 report qualifies its % of peak"
+grep -q '"percent_of_peak_is":"direct-fp32-equivalent' "$work/bench_auto.json" \
+  || fail "--conv auto report does not qualify its % of peak: $(cat "$work/bench_auto.json")"
 rm -rf "$work"
 echo "arguments and metadata: $cases malformed invocations rejected with one line each; extra metadata reported"
