@@ -239,14 +239,12 @@ void blend_tile(const float* g, int64_t rows, int64_t hw, int64_t t0, int64_t tn
   }
 }
 
-}  // namespace
-
-namespace {
 struct TemporalBuffer {
   AlignedScratch storage;
   size_t used = 0;  // floats handed out since the last release
 };
 thread_local TemporalBuffer tl_temporal_buffer;
+
 }  // namespace
 
 void release_temporal_buffer() {
