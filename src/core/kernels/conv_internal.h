@@ -15,6 +15,17 @@ void check_weight(const Operand& w, const char* what);
 // 384 KiB; tests shrink it to one panel).
 int64_t& temporal_winograd_bytes();
 
+// Panel p of a flat numbering of pixel panels: groups (frames, frame pairs) of `pixels` pixels, each cut into
+// panels_per_group panels of `width` (the last one shorter).
+struct PixelPanel {
+  int64_t group, n0;  // its group, its first pixel there
+  int nr;             // its pixels
+};
+inline PixelPanel pixel_panel(int64_t p, int64_t panels_per_group, int64_t pixels, int64_t width) {
+  const int64_t n0 = p % panels_per_group * width;
+  return PixelPanel{p / panels_per_group, n0, int(pixels - n0 < width ? pixels - n0 : width)};
+}
+
 constexpr int64_t kMaxTaps = 64;  // kh*kw handled by the shift packer (larger kernels take the gather path)
 
 struct ShiftGeom {

@@ -174,14 +174,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   // {ka, kb, sb}: V_0 = d0 - d2, V_1 = d1 + d2, V_2 = d2 - d1, V_3 = d1 - d3.
   constexpr struct { int ka, kb; float sb; } kV[4] = {{0, 2, -1.0f}, {1, 2, 1.0f}, {2, 1, -1.0f}, {1, 3, -1.0f}};
   // Unit u: frame pair (segment) s, pixels n0 .. n0 + nr - 1.
-  struct Unit {
-    int64_t s, n0;
-    int nr;
-  };
-  const auto unit = [&](int64_t u) {
-    const int64_t n0 = u % panels_per_seg * NR;
-    return Unit{u / panels_per_seg, n0, int(std::min<int64_t>(NR, hw - n0))};
-  };
+  const auto unit = [&](int64_t u) { return conv_detail::pixel_panel(u, panels_per_seg, hw, NR); };
   WinogradTemporalB v[4];
   for (int i = 0; i < 4; ++i) {
     v[i].x = x, v[i].f = f, v[i].cin = cin, v[i].hw = hw, v[i].pairs = pairs;
@@ -197,8 +190,8 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
     for (int64_t g = 0; g < ngroups; ++g) {
       const int64_t u0 = g * group, nu = std::min(group, units - u0);
       for (int64_t u = 0; u < nu; ++u) {
-        const Unit un = unit(u0 + u);
-        for (int i = 0; i < 4; ++i) v[i].pack(path, un.s, 0, cin, un.n0, un.nr, vb + (4 * u + i) * cin * NR);
+        const conv_detail::PixelPanel un = unit(u0 + u);
+        for (int i = 0; i < 4; ++i) v[i].pack(path, un.group, 0, cin, un.n0, un.nr, vb + (4 * u + i) * cin * NR);
       }
       for (int64_t q = 0; q < mpanels; ++q) {
         const int64_t m0 = q * MR;

@@ -56,8 +56,8 @@ WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, in
   block_tiles();
   // Still several blocks of both: one block of all output channels if its U fits budget.whole_filter (the VAE
   // decoder's 512-channel 64x64 layers: 1.3x faster than transforming each tile block's input three times).
-  if (b.ncb > 1 && b.ntb > 1 && a2 * K * ceil_div(cout, mr) * mr * 4 <= budget.whole_filter) {
-    b.co = ceil_div(cout, mr) * mr;
+  if (const int64_t all = ceil_div(cout, mr) * mr; b.ncb > 1 && b.ntb > 1 && a2 * K * all * 4 <= budget.whole_filter) {
+    b.co = all;
     b.ncb = 1;
     block_tiles();
   }

@@ -173,14 +173,7 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
     float* const win = apack + win_at + tid * thread_floats;
     float* const sums = win + win_floats;
     // Tile t: frame f, pixels n0 .. n0 + nr - 1; its sums for row panel q in the thread's block starting at b0.
-    struct Tile {
-      int64_t f, n0;
-      int nr;
-    };
-    const auto tile_at = [&](int64_t t) {
-      const int64_t n0 = t % tpf * NR;
-      return Tile{t / tpf, n0, int(std::min<int64_t>(NR, plane - n0))};
-    };
+    const auto tile_at = [&](int64_t t) { return pixel_panel(t, tpf, plane, NR); };
     const auto sums_of = [&](int64_t b0, int64_t t, int64_t q) { return sums + ((t - b0) * mpanels + q) * tile_floats; };
     TileEpilogue te;  // the last pass's: the earlier ones only add into the sums
     te.act = act;
