@@ -317,6 +317,24 @@ TEST_P(ConvTest, WeightDtypesAndEpilogues) {
       }
 }
 
+// Frames narrower than a B panel share panels (gemm.cpp: merged segments): 7 frames of 6 pixels are 2-4 panels
+// instead of 7 on every path; runs of one frame start and end inside panels. 1x1 and 3x3, several K passes, every
+// epilogue (accumulate with an activation over several K passes goes through the engine's temporary first), and the
+// reduced precisions, whose B scales are per column.
+TEST_P(ConvTest, NarrowFramesShareBPanels) {
+  uint32_t seed = 900;
+  for (DType dt : {DType::F32, DType::F16, DType::I8})
+    for (Act act : {Act::None, Act::SiLU})
+      for (bool acc : {false, true}) {
+        EXPECT_EQ(run_conv({7, 50, 13, 2, 3, 3, 1, 1, dt, true, act, acc}, seed++), 0);  // K = 450
+        EXPECT_EQ(run_conv({7, 9, 30, 3, 2, 1, 1, 0, dt, act == Act::None, act, acc}, seed++), 0);
+        EXPECT_EQ(run_conv({5, 11, 14, 4, 4, 3, 1, 1, dt, true, act, acc, act == Act::SiLU, act == Act::None}, seed++),
+                  0);
+      }
+  for (int64_t f : {3, 16}) EXPECT_EQ(run_temporal({2, f, 40, 21, 5, DType::F16, Act::SiLU, true}, seed++), 0);
+  EXPECT_EQ(run_temporal({2, 3, 9, 13, 5, DType::F32, Act::SiLU, true, false, false, 8}, seed++), 0);  // row stride 8
+}
+
 // Precision::Bf16 (3x3 convolutions then stay direct): 1x1, same and strided 3x3, patch embedding, temporal, every
 // weight dtype, epilogues, one-frame clips, K over several passes; against a reference that rounds alike.
 TEST_P(ConvTest, Bf16Compute) {

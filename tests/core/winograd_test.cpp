@@ -339,8 +339,8 @@ TEST_P(WinogradTest, Conv2dDispatch) {
   EXPECT_FALSE(winograd_wins(3, 128, 16, 256, 256));  // the VAE's 3-channel output: direct
   EXPECT_FALSE(winograd_wins(1280, 1280, 4, 8, 8));    // 8x8 frames, few of them: direct
   EXPECT_TRUE(winograd_wins(1280, 1280, 8, 8, 8));
-  EXPECT_FALSE(winograd_wins(1280, 1280, 8, 4, 4));    // 4x4 frames (F(2x2)): 256 pixels in all needed
-  EXPECT_TRUE(winograd_wins(1280, 1280, 16, 4, 4));
+  EXPECT_FALSE(winograd_wins(1280, 1280, 16, 4, 4));   // 4x4 frames (F(2x2)): 1024 pixels in all needed
+  EXPECT_TRUE(winograd_wins(1280, 1280, 64, 4, 4));
   EXPECT_TRUE(winograd_wins(512, 512, 1, 64, 64));
   EXPECT_EQ(winograd_tile_for(4, 4), WinogradTile::F2x2);
   EXPECT_EQ(winograd_tile_for(3, 40), WinogradTile::F2x2);
