@@ -112,7 +112,7 @@ void BM_egopd_conv3x3(benchmark::State& state) {
 }
 
 // Temporal (3,1,1) convolution on frame-major activations: args batch, frames, cin, cout, hw. EGOPD_CONV selects
-// the algorithm (auto: Winograd F(2,3) on 16+ pixels per frame); GFLOP/s count the direct algorithm's work.
+// the algorithm (auto: Winograd F(4,3) on 32+ pixels per frame of 16 frames); GFLOP/s count the direct algorithm's work.
 void BM_egopd_conv_temporal3(benchmark::State& state) {
   const int64_t b = state.range(0), f = state.range(1), cin = state.range(2), cout = state.range(3),
                 hw = state.range(4);
@@ -194,6 +194,7 @@ BENCHMARK(BM_onednn_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 2); });
 BENCHMARK(BM_egopd_conv_temporal3)
     ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
     ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
+    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
     ->Args({1, 16, 1280, 1280, 16})  // U-Net 4x4
     ->Args({1, 16, 512, 512, 1024})  // VAE decoder 32x32
     ->Args({1, 16, 256, 256, 16384})  // VAE decoder 128x128

@@ -145,6 +145,23 @@ struct TemporalCase {
   int64_t y_stride = 0;  // floats between output rows (0: hw); the columns past hw must stay untouched
 };
 
+// Bᵀ, G and Aᵀ of Winograd F(m,3) (Lavin & Gray), m = 2 or 4: y = Aᵀ[(G w) ⊙ (Bᵀ d)].
+struct TemporalWinogradMatrices {
+  double bt[6][6], g[6][3], at[4][6];
+};
+const TemporalWinogradMatrices& temporal_matrices(int m) {
+  static const TemporalWinogradMatrices f2{{{1, 0, -1, 0}, {0, 1, 1, 0}, {0, -1, 1, 0}, {0, 1, 0, -1}},
+                                           {{1, 0, 0}, {0.5, 0.5, 0.5}, {0.5, -0.5, 0.5}, {0, 0, 1}},
+                                           {{1, 1, 1, 0}, {0, 1, -1, -1}}};
+  static const TemporalWinogradMatrices f4{
+      {{4, 0, -5, 0, 1, 0}, {0, -4, -4, 1, 1, 0}, {0, 4, -4, -1, 1, 0}, {0, -2, -1, 2, 1, 0}, {0, 2, -1, -2, 1, 0},
+       {0, 4, 0, -5, 0, 1}},
+      {{0.25, 0, 0}, {-1.0 / 6, -1.0 / 6, -1.0 / 6}, {-1.0 / 6, 1.0 / 6, -1.0 / 6}, {1.0 / 24, 1.0 / 12, 1.0 / 6},
+       {1.0 / 24, -1.0 / 12, 1.0 / 6}, {0, 0, 1}},
+      {{1, 1, 1, 1, 1, 0}, {0, 1, -1, 2, -2, 0}, {0, 1, 1, 4, 4, 0}, {0, 1, -1, 8, -8, 1}}};
+  return m == 2 ? f2 : f4;
+}
+
 int run_temporal(const TemporalCase& c, uint32_t seed) {
   std::mt19937 rng(seed);
   const std::vector<float> x = random_vec(size_t(c.b * c.f * c.cin * c.hw), rng);
@@ -154,7 +171,9 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * ys), rng);
   const std::vector<float> y0 = y;
   set_precision(precision_of(c.bf16, c.int8));
-  const bool winograd = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw) != "direct";
+  const std::string algo = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw);
+  const int tile = algo == "winograd F(2,3)" ? 2 : algo == "winograd F(4,3)" ? 4 : 0;
+  if (!tile && algo != "direct") ADD_FAILURE() << "unknown temporal algorithm " << algo;
   conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
                  c.accumulate, c.y_stride);
   set_precision(Precision::Fp32);
@@ -182,21 +201,28 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
           double r = act_ref(c.act, s);
           const double lip = c.act == Act::None ? 1.0 : 1.2;
           double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
-          if (winograd) {  // F(2,3): the products |U_i||V_i| bound the float32 error (conv_temporal.cpp)
-            const int64_t t0 = t - t % 2 - 1;  // d_k = x[t0 + k]
-            const auto xa = [&](int64_t ci, int64_t k) {
-              const int64_t ts = t0 + k;
-              return ts < 0 || ts >= c.f ? 0.0 : std::fabs(x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)));
-            };
+          if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error (conv_temporal.cpp)
+            const TemporalWinogradMatrices& T = temporal_matrices(tile);
+            const int64_t r0 = t % tile, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
             double sw = 0;
             for (int64_t ci = 0; ci < c.cin; ++ci) {
-              const size_t wi = size_t((o * c.cin + ci) * 3);
-              const double a0 = std::fabs(w_at(wi)), a2 = std::fabs(w_at(wi + 2)),
-                           a1 = 0.5 * (a0 + std::fabs(w_at(wi + 1)) + a2);
-              const double b1 = xa(ci, 1) + xa(ci, 2);
-              sw += t % 2 ? 2 * a1 * b1 + a2 * (xa(ci, 1) + xa(ci, 3)) : a0 * (xa(ci, 0) + xa(ci, 2)) + 2 * a1 * b1;
+              double xa[6], wa[3];
+              for (int k = 0; k < tile + 2; ++k) {
+                const int64_t ts = t0 + k;
+                xa[k] = ts < 0 || ts >= c.f ? 0.0 : std::fabs(x_at(size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)));
+              }
+              for (int k = 0; k < 3; ++k) wa[k] = std::fabs(w_at(size_t((o * c.cin + ci) * 3 + k)));
+              for (int i = 0; i < tile + 2; ++i) {
+                double u = 0, v = 0;
+                for (int k = 0; k < 3; ++k) u += std::fabs(T.g[i][k]) * wa[k];
+                for (int k = 0; k < tile + 2; ++k) v += std::fabs(T.bt[i][k]) * xa[k];
+                sw += std::fabs(T.at[r0][i]) * u * v;
+              }
             }
-            tl = lip * 2.0 * double(c.cin + 8) * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
+            // cin additions of the products, and the rounding steps of the transforms (F(4,3): up to 4 in the input
+            // and filter transforms each, 5 in the output transform)
+            const double steps = double(c.cin) + (tile == 2 ? 8 : 14);
+            tl = lip * 2.0 * steps * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
           }
           if (c.int8) tl += lip * q8.bound(w_max[size_t(o)]);
           if (c.accumulate) {
@@ -388,42 +414,55 @@ TEST_P(ConvTest, Int8Compute) {
   EXPECT_NE(y8, y32);
 }
 
-// Winograd F(2,3) along time: odd and even frame counts (the last pair half empty), one and two videos, pixel
+// Winograd F(2,3) and F(4,3) along time: frame counts that take each tile (2, 5: F(2,3); 3, 9, 16: F(4,3)) with
+// the last tile partly past the video (5: one of two frames; 3, 9: three and one of four), one and two videos, pixel
 // blocks and panel tails, every weight dtype, activations and residuals; Auto takes it on large layers only.
 TEST_P(ConvTest, TemporalWinograd) {
   set_conv_algo(ConvAlgo::Winograd);
+  struct Restore {
+    int64_t bytes = conv_detail::temporal_winograd_bytes();
+    ~Restore() { conv_detail::temporal_winograd_bytes() = bytes, conv_detail::temporal_winograd_tile() = 0; }
+  } restore;
   uint32_t seed = 700;
-  for (int64_t f : {2, 3, 5, 16})
-    for (int64_t hw : {1, 7, 33, 300}) {
-      EXPECT_EQ(run_temporal({2, f, 6, 5, hw}, seed++), 0);
-      EXPECT_EQ(run_temporal({1, f, 17, 13, hw, DType::F16}, seed++), 0);
+  for (int tile : {2, 4}) {
+    conv_detail::temporal_winograd_tile() = tile;
+    for (int64_t f : {2, 3, 5, 9, 16})
+      for (int64_t hw : {1, 7, 33, 300}) {
+        EXPECT_EQ(run_temporal({2, f, 6, 5, hw}, seed++), 0);
+        EXPECT_EQ(run_temporal({1, f, 17, 13, hw, DType::F16}, seed++), 0);
+      }
+    EXPECT_EQ(run_temporal({1, 4, 700, 8, 40, DType::BF16}, seed++), 0);  // cin > the GEMM's KC
+    EXPECT_EQ(run_temporal({2, 3, 20, 40, 70, DType::I8}, seed++), 0);
+    EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
+    EXPECT_EQ(run_temporal({1, 5, 30, 7, 65, DType::F16, Act::GELU, true}, seed++), 0);
+    EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);  // one frame: centre tap
+    for (int64_t f : {3, 4}) {  // rows of 70 pixels in a video of 100 (a tile of a larger frame)
+      EXPECT_EQ(run_temporal({2, f, 20, 14, 70, DType::F16, Act::None, false, false, false, 100}, seed++), 0);
+      EXPECT_EQ(run_temporal({1, f, 9, 13, 33, DType::F32, Act::SiLU, true, false, false, 40}, seed++), 0);
     }
-  EXPECT_EQ(run_temporal({1, 4, 700, 8, 40, DType::BF16}, seed++), 0);  // cin > the GEMM's KC
-  EXPECT_EQ(run_temporal({2, 3, 20, 40, 70, DType::I8}, seed++), 0);
-  EXPECT_EQ(run_temporal({2, 3, 7, 7, 9, DType::F32, Act::SiLU, true}, seed++), 0);
-  EXPECT_EQ(run_temporal({1, 5, 30, 7, 65, DType::F16, Act::GELU, true}, seed++), 0);
-  EXPECT_EQ(run_temporal({1, 1, 5, 4, 3, DType::F32, Act::None, true}, seed++), 0);  // one frame: centre tap
-  for (int64_t f : {3, 4}) {  // rows of 70 pixels in a video of 100 (a tile of a larger frame)
-    EXPECT_EQ(run_temporal({2, f, 20, 14, 70, DType::F16, Act::None, false, false, false, 100}, seed++), 0);
-    EXPECT_EQ(run_temporal({1, f, 9, 13, 33, DType::F32, Act::SiLU, true, false, false, 40}, seed++), 0);
-  }
-  {  // one pixel panel per unit of work (else up to 8), the last one partial
-    struct Restore {
-      int64_t saved = conv_detail::temporal_winograd_bytes();
-      ~Restore() { conv_detail::temporal_winograd_bytes() = saved; }
-    } restore;
-    conv_detail::temporal_winograd_bytes() = 1;
+    conv_detail::temporal_winograd_bytes() = 1;  // one pixel panel per unit of work (else up to 8), the last partial
     EXPECT_EQ(run_temporal({2, 5, 9, 13, 150, DType::F32, Act::SiLU, true}, seed++), 0);
     EXPECT_EQ(run_temporal({1, 4, 33, 40, 97, DType::F16}, seed++), 0);
+    conv_detail::temporal_winograd_bytes() = restore.bytes;
   }
+  conv_detail::temporal_winograd_tile() = 0;
   EXPECT_EQ(conv_temporal3_algorithm(1, 64, 64, 4096), "direct");
-  EXPECT_EQ(conv_temporal3_algorithm(16, 64, 64, 4096), "winograd F(2,3)");
+  EXPECT_EQ(conv_temporal3_algorithm(16, 256, 64, 4096), "winograd F(4,3)");  // 24 products against 32
+  EXPECT_EQ(conv_temporal3_algorithm(2, 256, 64, 4096), "winograd F(2,3)");   // 4 against 6
+  EXPECT_EQ(conv_temporal3_algorithm(3, 256, 64, 4096), "winograd F(4,3)");   // 6 against 8
+  EXPECT_EQ(conv_temporal3_algorithm(5, 256, 64, 4096), "winograd F(2,3)");   // 12 each
+  EXPECT_EQ(conv_temporal3_algorithm(16, 255, 64, 4096), "winograd F(2,3)");  // few channels: the transforms weigh
   set_conv_algo(ConvAlgo::Auto);
   EXPECT_EQ(conv_temporal3_algorithm(16, 128, 128, 65536), "winograd F(2,3)");  // the VAE decoder's top level
-  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 64), "winograd F(2,3)");  // the U-Net's 8x8 frames
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 64), "winograd F(4,3)");  // the U-Net's 8x8 frames
   EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "direct");           // its 4x4 frames: few pixels
   EXPECT_EQ(conv_temporal3_algorithm(16, 3, 128, 65536), "direct");              // few channels
   EXPECT_EQ(run_temporal({1, 16, 24, 20, 300, DType::F16}, seed++), 0);
+  // auto's own choice at the U-Net's channel counts (F(4,3); 16 sampled output channels)
+  for (int64_t cin : {320, 1280}) {
+    ASSERT_EQ(conv_temporal3_algorithm(16, cin, 16, 40), "winograd F(4,3)");
+    EXPECT_EQ(run_temporal({1, 16, cin, 16, 40, DType::F16}, seed++), 0);
+  }
 }
 
 TEST_P(ConvTest, Temporal) {

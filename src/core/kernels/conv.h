@@ -49,7 +49,7 @@ void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t h
                     const float* bias, int64_t cout, float* y, Act act = Act::None, bool accumulate = false,
                     int64_t y_stride = 0);
 
-// What conv_temporal3 runs for this call under the current settings: "direct" or "winograd F(2,3)".
+// What conv_temporal3 runs for this call under the current settings: "direct", "winograd F(2,3)" or "winograd F(4,3)".
 std::string conv_temporal3_algorithm(int64_t f, int64_t cin, int64_t cout, int64_t hw);
 
 }  // namespace egopd

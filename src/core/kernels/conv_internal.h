@@ -14,6 +14,8 @@ void check_weight(const Operand& w, const char* what);
 // Bytes of the transformed-frame panels a thread of the temporal Winograd packs at a time (up to 8 pixel panels in
 // 384 KiB; tests shrink it to one panel).
 int64_t& temporal_winograd_bytes();
+// The temporal Winograd's tile: 0 chooses F(2,3) or F(4,3) by frames and channels; tests force 2 or 4.
+int& temporal_winograd_tile();
 
 // Panel p of a flat numbering of pixel panels: groups (frames, frame pairs) of `pixels` pixels, each cut into
 // panels_per_group panels of `width` (the last one shorter).

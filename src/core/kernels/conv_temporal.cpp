@@ -1,13 +1,16 @@
 // The temporal convolution (kernel (3,1,1)): either one implicit GEMM over the three taps (direct), or Winograd
-// F(2,3) along time (two output frames from four input frames with four products instead of six: 2/3 of the
-// GEMM work), chosen like conv2d's algorithm (conv.h: ConvAlgo).
+// F(m,3) along time (m output frames from m + 2 input frames with m + 2 products of transformed filters instead of
+// 3m: F(2,3) 2/3 of the GEMM work, F(4,3) 1/2), chosen like conv2d's algorithm (conv.h: ConvAlgo).
 //
-// F(2,3) (Lavin & Gray), per frame pair p (outputs 2p, 2p+1; inputs d_k = x[2p-1+k], zero outside the video):
-//   V_0 = d_0 - d_2, V_1 = d_1 + d_2, V_2 = d_2 - d_1, V_3 = d_1 - d_3        (input transform, per channel)
-//   U_0 = w_0, U_1 = (w_0 + w_1 + w_2)/2, U_2 = (w_0 - w_1 + w_2)/2, U_3 = w_2  (filter transform, per (o, c))
-//   M_i = U_i · V_i                                                          (four products [cout, cin] x [cin, px])
-//   y_2p = M_0 + M_1 + M_2,  y_2p+1 = M_1 - M_2 - M_3                        (output transform)
-// V exists only as the micro-kernel's B panels (packed from the two frames each combines), M only as its tiles.
+// Lavin & Gray, per tile q of m output frames (outputs mq .. mq + m - 1; inputs d_k = x[mq - 1 + k], zero outside
+// the video); the input transform V = Bᵀd is temporal_wino_pack.h's, per channel;
+//   F(2,3): U = (w0, (w0 + w1 + w2)/2, (w0 - w1 + w2)/2, w2)                       (filter transform, per (o, c))
+//           y = (M0 + M1 + M2, M1 - M2 - M3)                                       (output transform)
+//   F(4,3): U = (w0/4, -(w0 + w1 + w2)/6, -(w0 - w1 + w2)/6, (w0 + 2w1 + 4w2)/24, (w0 - 2w1 + 4w2)/24, w2)
+//           y = (M0 + (M1 + M2) + (M3 + M4), (M1 - M2) + 2(M3 - M4), (M1 + M2) + 4(M3 + M4),
+//                (M1 - M2) + 8(M3 - M4) + M5)
+//   M_i = U_i · V_i                                                   (m + 2 products [cout, cin] x [cin, px])
+// V exists only as the micro-kernel's B panels, M only as its tiles.
 #include <omp.h>
 
 #include <algorithm>
@@ -88,29 +91,6 @@ struct TemporalB : gemm_detail::BSource {
   }
 };
 
-// V_i of frame pairs: B(c, n) of segment s = (batch, pair) is sa * d_ka + sb * d_kb at pixel n0_block + n.
-struct WinogradTemporalB : gemm_detail::BSource {
-  const float* x;
-  int64_t f, cin, hw, pairs;
-  int ka, kb;
-  float sb;  // sa = 1 for every V_i (V_2 = d_2 - d_1 is written with d_2 first)
-  void pack(const gemm_detail::GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
-            float* dst) const override {
-    const int64_t bi = seg / pairs, p = seg % pairs, NR = path.nr;
-    const int64_t ta = 2 * p - 1 + ka, tb = 2 * p - 1 + kb;
-    const auto frame = [&](int64_t t) { return x + ((bi * f + t) * cin + k0) * hw + n0; };
-    const bool has_a = ta >= 0 && ta < f, has_b = tb >= 0 && tb < f;
-    if (!has_a && !has_b) return std::fill(dst, dst + kc * NR, 0.0f);
-    if (!has_b) return path.pack_b(frame(ta), DType::F32, hw, false, nullptr, kc, nr, dst);
-    if (!has_a) {
-      path.pack_b(frame(tb), DType::F32, hw, false, nullptr, kc, nr, dst);
-      for (int64_t i = 0; i < kc * NR; ++i) dst[i] *= sb;
-      return;
-    }
-    path.pack_b_sum(frame(ta), frame(tb), sb, hw, kc, nr, dst);
-  }
-};
-
 // The filter transform (per call, ~cout*cin) is paid back by a third of the multiplications (~cout*cin*f*hw)
 // once a frame has a few pixel panels: measured on an AMD EPYC (Zen 5 class), 2 threads, 16 frames, F16 weights,
 // 1.15-1.6x the direct convolution on the U-Net's and the VAE decoder's frames of 256 pixels and more; on 1280
@@ -124,66 +104,107 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
   return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= 16 && cout >= 16 && hw >= kMinPixels);
 }
 
+// F(4,3) where it needs fewer products than F(2,3) (4 per 2 frames against 6 per 4; 16 frames: 32 and 24) and the
+// channels make the products the larger part of the work. Measured on an AMD EPYC (Zen 5 class), 2 threads, 16
+// frames, F16 weights, alternating with F(2,3): 128 channels 0.94x (its transforms, 6 panels in and 6 products out
+// per tile, outweigh the quarter of the products saved), 256-512 channels 1.07-1.11x, 1280 channels of 8x8 frames
+// 1.25x.
+int temporal_tile(int64_t f, int64_t cin) {
+  if (const int forced = conv_detail::temporal_winograd_tile()) return forced;
+  return cin >= 256 && 6 * ((f + 3) / 4) < 4 * ((f + 1) / 2) ? 4 : 2;
+}
+
+// U_i from the taps w0, w1, w2 of one element of the packed A panels.
+template <int M>
+void filter_transform(float w0, float w1, float w2, float* u, int64_t stride) {
+  if constexpr (M == 2) {
+    const float h = 0.5f * (w0 + w2);
+    u[0] = w0, u[stride] = h + 0.5f * w1, u[2 * stride] = h - 0.5f * w1, u[3 * stride] = w2;
+  } else {
+    const float s = w0 + w2, d = w0 + 4.0f * w2;
+    u[0] = 0.25f * w0;
+    u[stride] = -(s + w1) / 6.0f;
+    u[2 * stride] = -(s - w1) / 6.0f;
+    u[3 * stride] = (d + 2.0f * w1) / 24.0f;
+    u[4 * stride] = (d - 2.0f * w1) / 24.0f;
+    u[5 * stride] = w2;
+  }
+}
+
+// Output frame r of a tile from the products m[i][j], j < nr.
+template <int M>
+void output_transform(int r, const float* const* m, int nr, float bias, float* out) {
+  if constexpr (M == 2) {
+    if (r == 0)
+      for (int j = 0; j < nr; ++j) out[j] = m[0][j] + m[1][j] + m[2][j] + bias;
+    else
+      for (int j = 0; j < nr; ++j) out[j] = m[1][j] - m[2][j] - m[3][j] + bias;
+  } else {
+    const float c = r == 1 ? 2.0f : r == 2 ? 4.0f : 8.0f;
+    if (r == 0)
+      for (int j = 0; j < nr; ++j) out[j] = m[0][j] + (m[1][j] + m[2][j]) + (m[3][j] + m[4][j]) + bias;
+    else if (r == 2)
+      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] + m[2][j]) + c * (m[3][j] + m[4][j]) + bias;
+    else if (r == 1)
+      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] - m[2][j]) + c * (m[3][j] - m[4][j]) + bias;
+    else
+      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] - m[2][j]) + c * (m[3][j] - m[4][j]) + m[5][j] + bias;
+  }
+}
+
+template <int M>
 void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                              const float* bias, int64_t cout, float* y, Act act, bool accumulate, int64_t ys) {
   using gemm_detail::GemmPath;
+  constexpr int kA = M + 2;  // tile positions: transformed frames, filters and products per tile
   const GemmPath& path = gemm_detail::gemm_path();
   const int MR = path.mr, NR = path.nr;
-  const int64_t pairs = (f + 1) / 2, segs = b * pairs;
+  const int64_t tiles = (f + M - 1) / M, segs = b * tiles;
   // The filter transform, straight into the micro-kernel's A panels: panel (i, q) holds rows q*MR .. of U_i,
   // element (r, c) at [c*MR + r] (rows past cout zero). The taps are packed by the direct convolution's A packer
-  // (vectorised per path), then combined.
+  // (vectorised per path) into three panels of the thread's, then combined.
   const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * cin, u_floats = mpanels * panel_floats;
   thread_local AlignedScratch a_buf, v_buf;
   const int transform_threads = cout * cin >= 4096 && !omp_in_parallel() ? num_threads() : 1;
-  float* const A = a_buf.get(size_t(4 * u_floats + transform_threads * panel_floats));  // then tap 1 per thread
+  float* const A = a_buf.get(size_t(kA * u_floats + 3 * transform_threads * panel_floats));
   const TemporalA taps(weight, cin, 0);
 #pragma omp parallel num_threads(transform_threads) if (transform_threads > 1)
   {
-    float* const w1 = A + 4 * u_floats + omp_get_thread_num() * panel_floats;
+    float* const w0 = A + kA * u_floats + 3 * omp_get_thread_num() * panel_floats;
+    float* const w1 = w0 + panel_floats;
+    float* const w2 = w1 + panel_floats;
 #pragma omp for schedule(static)
     for (int64_t q = 0; q < mpanels; ++q) {
       const int mr = int(std::min<int64_t>(MR, cout - q * MR));
-      float* const u0 = A + q * panel_floats;
-      float* const u1 = u0 + u_floats;
-      float* const u2 = u1 + u_floats;
-      float* const u3 = u2 + u_floats;
-      taps.pack(path, q * MR, mr, 0, cin, u0);
+      taps.pack(path, q * MR, mr, 0, cin, w0);
       taps.pack(path, q * MR, mr, cin, cin, w1);
-      taps.pack(path, q * MR, mr, 2 * cin, cin, u3);
-      for (int64_t e = 0; e < panel_floats; ++e) {
-        const float h = 0.5f * (u0[e] + u3[e]);
-        u1[e] = h + 0.5f * w1[e];
-        u2[e] = h - 0.5f * w1[e];
-      }
+      taps.pack(path, q * MR, mr, 2 * cin, cin, w2);
+      float* const u = A + q * panel_floats;
+      for (int64_t e = 0; e < panel_floats; ++e) filter_transform<M>(w0[e], w1[e], w2[e], u + e, u_floats);
     }
   }
-  // Units of work: one pixel panel (NR pixels) of one frame pair, whose V_0..V_3 panels are packed once and
-  // multiplied by every row panel of the U_i; a thread takes `group` units at a time (their panels take about
-  // temporal_winograd_bytes(), in L2), so each A panel it reads serves them all. The four products of a micro-tile
-  // never leave the stack: the output transform, bias, activation and residual follow at once (the products
-  // written to memory and read back took most of the saving on 128-channel layers).
+  // Units of work: one pixel panel (NR pixels) of one tile, whose V_i panels are packed once and multiplied by every
+  // row panel of the U_i; a thread takes `group` units at a time (their panels take about temporal_winograd_bytes(),
+  // in L2), so each A panel it reads serves them all. The products of a micro-tile never leave the stack: the
+  // output transform, bias, activation and residual follow at once (the products written to memory and read back
+  // took most of the saving on 128-channel layers).
   const int64_t panels_per_seg = (hw + NR - 1) / NR, units = segs * panels_per_seg;
-  const int64_t unit_floats = 4 * cin * NR;
+  // Panels one cache line more than their floats apart: the packer writes all kA of them row by row, which at a
+  // power-of-two distance (128 channels: 16 KiB) would share one L1 set.
+  const int64_t vpanel = cin * NR + 16, unit_floats = kA * vpanel;
   const int64_t group = std::clamp<int64_t>(conv_detail::temporal_winograd_bytes() / (unit_floats * 4), 1, 8);
   const int64_t ngroups = (units + group - 1) / group;
   int threads = omp_in_parallel() ? 1 : num_threads();
-  if (2.0 * double(segs * hw) * double(4 * cout * cin) < gemm_detail::kSerialFlops) threads = 1;
+  if (2.0 * double(segs * hw) * double(kA * cout * cin) < gemm_detail::kSerialFlops) threads = 1;
   threads = int(std::min<int64_t>(threads, ngroups));
   float* const V = v_buf.get(size_t(threads * group * unit_floats));
-  // {ka, kb, sb}: V_0 = d0 - d2, V_1 = d1 + d2, V_2 = d2 - d1, V_3 = d1 - d3.
-  constexpr struct { int ka, kb; float sb; } kV[4] = {{0, 2, -1.0f}, {1, 2, 1.0f}, {2, 1, -1.0f}, {1, 3, -1.0f}};
-  // Unit u: frame pair (segment) s, pixels n0 .. n0 + nr - 1.
+  alignas(64) static const float zero_row[gemm_detail::kMaxNR] = {};
+  // Unit u: tile (segment) s, pixels n0 .. n0 + nr - 1.
   const auto unit = [&](int64_t u) { return conv_detail::pixel_panel(u, panels_per_seg, hw, NR); };
-  WinogradTemporalB v[4];
-  for (int i = 0; i < 4; ++i) {
-    v[i].x = x, v[i].f = f, v[i].cin = cin, v[i].hw = hw, v[i].pairs = pairs;
-    v[i].ka = kV[i].ka, v[i].kb = kV[i].kb, v[i].sb = kV[i].sb;
-  }
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     float* const vb = V + omp_get_thread_num() * group * unit_floats;
-    alignas(64) float m[4][gemm_detail::kMaxMR * gemm_detail::kMaxNR];  // M_i of one micro-tile, row stride NR
+    alignas(64) float m[kA][gemm_detail::kMaxMR * gemm_detail::kMaxNR];  // M_i of one micro-tile, row stride NR
     alignas(64) float out[gemm_detail::kMaxNR];
     const gemm_detail::TileEpilogue plain;
 #pragma omp for schedule(dynamic)
@@ -191,29 +212,32 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
       const int64_t u0 = g * group, nu = std::min(group, units - u0);
       for (int64_t u = 0; u < nu; ++u) {
         const conv_detail::PixelPanel un = unit(u0 + u);
-        for (int i = 0; i < 4; ++i) v[i].pack(path, un.group, 0, cin, un.n0, un.nr, vb + (4 * u + i) * cin * NR);
+        const int64_t bi = un.group / tiles, t0 = M * (un.group % tiles) - 1;  // d_k = x[t0 + k]
+        const float* in[kA];
+        int64_t ld[kA];
+        for (int k = 0; k < kA; ++k) {
+          const int64_t t = t0 + k;
+          const bool inside = t >= 0 && t < f;
+          in[k] = inside ? x + (bi * f + t) * cin * hw + un.n0 : zero_row;
+          ld[k] = inside ? hw : 0;
+        }
+        path.pack_b_temporal_wino(M, in, ld, cin, un.nr, vb + u * unit_floats, vpanel);
       }
       for (int64_t q = 0; q < mpanels; ++q) {
         const int64_t m0 = q * MR;
         const int mr = int(std::min<int64_t>(MR, cout - m0));
         for (int64_t u = 0; u < nu; ++u) {
           const auto [s, n0, nr] = unit(u0 + u);
-          for (int i = 0; i < 4; ++i)
-            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + (4 * u + i) * cin * NR, m[i], NR, mr, nr,
-                       plain);
-          // y_2p = M_0 + M_1 + M_2, y_2p+1 = M_1 - M_2 - M_3 (the second frame of the last pair may not exist).
-          const int64_t bi = s / pairs, t0 = 2 * (s % pairs);
-          for (int64_t t = t0; t < std::min(t0 + 2, f); ++t)
+          for (int i = 0; i < kA; ++i)
+            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR, mr,
+                       nr, plain);
+          // The last tile's frames past the video are not written.
+          const int64_t bi = s / tiles, t0 = M * (s % tiles);
+          for (int64_t t = t0; t < std::min<int64_t>(t0 + M, f); ++t)
             for (int r = 0; r < mr; ++r) {
-              const float* m_0 = m[0] + r * NR;
-              const float* m_1 = m[1] + r * NR;
-              const float* m_2 = m[2] + r * NR;
-              const float* m_3 = m[3] + r * NR;
-              const float bv = bias ? bias[m0 + r] : 0.0f;
-              if (t == t0)
-                for (int j = 0; j < nr; ++j) out[j] = m_0[j] + m_1[j] + m_2[j] + bv;
-              else
-                for (int j = 0; j < nr; ++j) out[j] = m_1[j] - m_2[j] - m_3[j] + bv;
+              const float* rows[kA];
+              for (int i = 0; i < kA; ++i) rows[i] = m[i] + r * NR;
+              output_transform<M>(int(t - t0), rows, nr, bias ? bias[m0 + r] : 0.0f, out);
               wino_detail::apply_act_inplace(act, out, nr);
               float* dst = y + ((bi * f + t) * cout + m0 + r) * ys + n0;
               if (accumulate)
@@ -229,13 +253,19 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
 
 }  // namespace
 
+int& conv_detail::temporal_winograd_tile() {
+  static int tile = 0;
+  return tile;
+}
+
 int64_t& conv_detail::temporal_winograd_bytes() {
   static int64_t bytes = int64_t(384) << 10;
   return bytes;
 }
 
 std::string conv_temporal3_algorithm(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
-  return temporal_winograd(f, cin, cout, hw) ? "winograd F(2,3)" : "direct";
+  if (!temporal_winograd(f, cin, cout, hw)) return "direct";
+  return temporal_tile(f, cin) == 4 ? "winograd F(4,3)" : "winograd F(2,3)";
 }
 
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
@@ -245,7 +275,9 @@ void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t h
   const int64_t ys = y_stride > 0 ? y_stride : hw;
   if (ys < hw) throw Error("conv_temporal3: output row stride " + std::to_string(ys) + " < " + std::to_string(hw) + " pixels");
   if (temporal_winograd(f, cin, cout, hw))
-    return conv_temporal3_winograd(x, b, f, cin, hw, weight, bias, cout, y, act, accumulate, ys);
+    return temporal_tile(f, cin) == 4
+               ? conv_temporal3_winograd<4>(x, b, f, cin, hw, weight, bias, cout, y, act, accumulate, ys)
+               : conv_temporal3_winograd<2>(x, b, f, cin, hw, weight, bias, cout, y, act, accumulate, ys);
   // One frame only: just the centre tap (the others always see zero padding).
   const int64_t tap0 = f == 1 ? 1 : 0, ntaps = f == 1 ? 1 : 3;
   TemporalA a(weight, cin, tap0);

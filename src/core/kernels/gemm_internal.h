@@ -66,9 +66,10 @@ struct GemmPath {
                             int nr, float* dst) = nullptr;
   int64_t (*pack_a_temporal)(const void* w, DType dt, int64_t cin, int64_t m0, int64_t tap, int64_t c0,
                              int64_t len, float* dst) = nullptr;
-  // A B panel of the sum of two float32 row-major matrices (rows at stride ld): dst[k*NR + j] = a[k*ld + j] +
-  // sb * b[k*ld + j] for j < nr, zero beyond (the temporal Winograd's transformed frames, pack_sum.h).
-  void (*pack_b_sum)(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst) = nullptr;
+  // The temporal Winograd's transformed frames (temporal_wino_pack.h): the m + 2 panels V_i = (Bᵀd)_i of F(m,3),
+  // m = 2 or 4, from m + 2 float32 frames in[t] (rows at stride ld[t]), panel i at dst + i * panel_floats.
+  void (*pack_b_temporal_wino)(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                               int64_t panel_floats) = nullptr;
   // Float32 3x3 stride-1 pad-1 convolution from a per-tile input window (conv_internal.h; null, or false returned:
   // the implicit GEMM above).
   bool (*conv3x3_window)(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
@@ -214,10 +215,13 @@ void pack_b_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
                    float* dst);
 void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
                    float* dst);
-void pack_b_sum_avx2(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst);
-void pack_b_sum_avx512(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst);
+void pack_b_temporal_wino_avx2(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                              int64_t panel_floats);
+void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                                int64_t panel_floats);
 template <int NR>
-void pack_b_sum_portable(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst);
+void pack_b_temporal_wino_portable(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                                  int64_t panel_floats);
 void pack_b_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                  float* dst);
 void pack_a_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,

@@ -62,7 +62,7 @@ const GemmPath& gemm_path(KernelPath which) {
         with_blocking({kMrPortable, kNrPortable, microkernel_portable, true, pack_a_portable<kMrPortable>,
                        pack_b_portable<kNrPortable>, pack_im2col_shift_portable, nullptr},
                       false));
-    p.pack_b_sum = pack_b_sum_portable<kNrPortable>;
+    p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrPortable>;
     return p;
   }();
 #if defined(__x86_64__)
@@ -70,7 +70,7 @@ const GemmPath& gemm_path(KernelPath which) {
     GemmPath p = with_blocking({kMrAvx2, kNrAvx2, microkernel_avx2, true, pack_a_avx2, pack_b_avx2,
                                 pack_im2col_shift_avx2, pack_a_temporal6_avx2},
                                false);
-    p.pack_b_sum = pack_b_sum_avx2;
+    p.pack_b_temporal_wino = pack_b_temporal_wino_avx2;
     p.quantize_a_i8 = p.quantize_b_i8 = quantize_i8_pairs_avx2;
     p.i8_per = 2;
     p.micro_i8 = microkernel_avx2_i8;
@@ -82,7 +82,7 @@ const GemmPath& gemm_path(KernelPath which) {
                                 pack_im2col_shift_avx512, pack_a_temporal12_avx2},
                                true);
     p.conv3x3_window = conv3x3_window_avx512;
-    p.pack_b_sum = pack_b_sum_avx512;
+    p.pack_b_temporal_wino = pack_b_temporal_wino_avx512;
     if (cpu_info().avx512_bf16) p.to_bf16_pairs = to_bf16_pairs_avx512, p.micro_bf16 = microkernel_avx512_bf16;
     p = with_emulated_int8<kMrAvx512, kNrAvx512>(p);
     if (cpu_info().avx512_vnni) {
@@ -102,7 +102,7 @@ const GemmPath& gemm_path(KernelPath which) {
         with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon, pack_im2col_shift_neon,
                        nullptr},
                       false));
-    p.pack_b_sum = pack_b_sum_portable<kNrNeon>;  // NEON is the AArch64 baseline: the compiler vectorises it
+    p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;  // NEON is the AArch64 baseline: the compiler vectorises it
     return p;
   }();
   if (which == KernelPath::Neon) return neon;

@@ -9,7 +9,7 @@
 #pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
 #include <immintrin.h>
 
-#include "core/kernels/pack_sum.h"
+#include "core/kernels/temporal_wino_pack.h"
 
 #include "core/kernels/avx2/pack.h"
 #include "core/kernels/avx512/tile.h"
@@ -360,8 +360,9 @@ void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
                  });
 }
 
-void pack_b_sum_avx512(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst) {
-  pack_b_sum_rows<NR>(a, b, sb, ld, kc, nr, dst);
+void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                              int64_t panel_floats) {
+  temporal_wino_pack<NR>(m, in, ld, kc, nr, dst, panel_floats);
 }
 
 }  // namespace egopd::gemm_detail

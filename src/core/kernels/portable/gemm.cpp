@@ -5,7 +5,7 @@
 
 #include "core/error.h"
 #include "core/kernels/gemm_internal.h"
-#include "core/kernels/pack_sum.h"
+#include "core/kernels/temporal_wino_pack.h"
 
 namespace egopd::gemm_detail {
 
@@ -84,13 +84,16 @@ void pack_a_portable(const void* p, DType dt, int64_t ld, bool trans, const floa
 }
 
 template <int NR>
-void pack_b_sum_portable(const float* a, const float* b, float sb, int64_t ld, int64_t kc, int nr, float* dst) {
-  pack_b_sum_rows<NR>(a, b, sb, ld, kc, nr, dst);
+void pack_b_temporal_wino_portable(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
+                                   int64_t panel_floats) {
+  temporal_wino_pack<NR>(m, in, ld, kc, nr, dst, panel_floats);
 }
 
 template void pack_b_portable<16>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
-template void pack_b_sum_portable<kNrPortable>(const float*, const float*, float, int64_t, int64_t, int, float*);
-template void pack_b_sum_portable<kNrNeon>(const float*, const float*, float, int64_t, int64_t, int, float*);
+template void pack_b_temporal_wino_portable<kNrPortable>(int, const float* const*, const int64_t*, int64_t, int, float*,
+                                                        int64_t);
+template void pack_b_temporal_wino_portable<kNrNeon>(int, const float* const*, const int64_t*, int64_t, int, float*,
+                                                    int64_t);
 template void pack_b_portable<32>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
 template void pack_a_portable<kMrPortable>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
 template void pack_a_portable<kMrAvx512>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
