@@ -91,10 +91,11 @@ struct TemporalB : gemm_detail::BSource {
   }
 };
 
-// The filter transform (per call, ~cout*cin) is paid back by a third of the multiplications (~cout*cin*f*hw)
-// once a frame has a few pixel panels: measured on an AMD EPYC (Zen 5 class), 2 threads, 16 frames, F16 weights,
-// 1.15-1.6x the direct convolution on the U-Net's and the VAE decoder's frames of 256 pixels and more; on 1280
-// channels of 4x4 frames 0.94x (each unit of 16 pixels reads all four transformed filters, 26 MB).
+// The filter transform (per call, ~cout*cin) is paid back by the third (F(2,3)) or half (F(4,3)) of the
+// multiplications saved (~cout*cin*f*hw) once a frame has a few pixel panels: measured on an AMD EPYC (Zen 5
+// class), 2 threads, 16 frames, F16 weights, F(2,3) 1.15-1.6x the direct convolution on the U-Net's and the VAE
+// decoder's frames of 256 pixels and more; on 1280 channels of 4x4 frames 0.94x (each unit of 16 pixels reads all
+// four transformed filters, 26 MB).
 constexpr int64_t kMinPixels = 32;
 
 bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
@@ -107,27 +108,38 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
 // F(4,3) where it needs fewer products than F(2,3) (4 per 2 frames against 6 per 4; 16 frames: 32 and 24) and the
 // channels make the products the larger part of the work. Measured on an AMD EPYC (Zen 5 class), 2 threads, 16
 // frames, F16 weights, alternating with F(2,3): 128 channels 0.94x (its transforms, 6 panels in and 6 products out
-// per tile, outweigh the quarter of the products saved), 256-512 channels 1.07-1.11x, 1280 channels of 8x8 frames
-// 1.25x.
+// per tile, outweigh the quarter of the products saved), 256-512 channels 1.05-1.17x, 1280 channels of 8x8 frames
+// 1.22x.
 int temporal_tile(int64_t f, int64_t cin) {
   if (const int forced = conv_detail::temporal_winograd_tile()) return forced;
   return cin >= 256 && 6 * ((f + 3) / 4) < 4 * ((f + 1) / 2) ? 4 : 2;
 }
 
-// U_i from the taps w0, w1, w2 of one element of the packed A panels.
+// U_i (at u + i * stride) from the taps w0, w1, w2 of n elements of the packed A panels; plain loops on restrict
+// pointers, multiplying by the reciprocals, so that the compiler vectorises them (scalar divisions took ~6% of a
+// 1280-channel call).
 template <int M>
-void filter_transform(float w0, float w1, float w2, float* u, int64_t stride) {
+void filter_transform(const float* __restrict w0, const float* __restrict w1, const float* __restrict w2, int64_t n,
+                      float* u, int64_t stride) {
+  float *__restrict u0 = u, *__restrict u1 = u + stride, *__restrict u2 = u + 2 * stride,
+                    *__restrict u3 = u + 3 * stride;
   if constexpr (M == 2) {
-    const float h = 0.5f * (w0 + w2);
-    u[0] = w0, u[stride] = h + 0.5f * w1, u[2 * stride] = h - 0.5f * w1, u[3 * stride] = w2;
+    for (int64_t e = 0; e < n; ++e) {
+      const float h = 0.5f * (w0[e] + w2[e]);
+      u0[e] = w0[e], u1[e] = h + 0.5f * w1[e], u2[e] = h - 0.5f * w1[e], u3[e] = w2[e];
+    }
   } else {
-    const float s = w0 + w2, d = w0 + 4.0f * w2;
-    u[0] = 0.25f * w0;
-    u[stride] = -(s + w1) / 6.0f;
-    u[2 * stride] = -(s - w1) / 6.0f;
-    u[3 * stride] = (d + 2.0f * w1) / 24.0f;
-    u[4 * stride] = (d - 2.0f * w1) / 24.0f;
-    u[5 * stride] = w2;
+    float *__restrict u4 = u + 4 * stride, *__restrict u5 = u + 5 * stride;
+    constexpr float kSixth = 1.0f / 6.0f, kTwentyFourth = 1.0f / 24.0f;
+    for (int64_t e = 0; e < n; ++e) {
+      const float s = w0[e] + w2[e], d = w0[e] + 4.0f * w2[e];
+      u0[e] = 0.25f * w0[e];
+      u1[e] = -(s + w1[e]) * kSixth;
+      u2[e] = -(s - w1[e]) * kSixth;
+      u3[e] = (d + 2.0f * w1[e]) * kTwentyFourth;
+      u4[e] = (d - 2.0f * w1[e]) * kTwentyFourth;
+      u5[e] = w2[e];
+    }
   }
 }
 
@@ -179,8 +191,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
       taps.pack(path, q * MR, mr, 0, cin, w0);
       taps.pack(path, q * MR, mr, cin, cin, w1);
       taps.pack(path, q * MR, mr, 2 * cin, cin, w2);
-      float* const u = A + q * panel_floats;
-      for (int64_t e = 0; e < panel_floats; ++e) filter_transform<M>(w0[e], w1[e], w2[e], u + e, u_floats);
+      filter_transform<M>(w0, w1, w2, panel_floats, A + q * panel_floats, u_floats);
     }
   }
   // Units of work: one pixel panel (NR pixels) of one tile, whose V_i panels are packed once and multiplied by every
@@ -229,8 +240,8 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
         for (int64_t u = 0; u < nu; ++u) {
           const auto [s, n0, nr] = unit(u0 + u);
           for (int i = 0; i < kA; ++i)
-            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR, mr,
-                       nr, plain);
+            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR,
+                       mr, nr, plain);
           // The last tile's frames past the video are not written.
           const int64_t bi = s / tiles, t0 = M * (s % tiles);
           for (int64_t t = t0; t < std::min<int64_t>(t0 + M, f); ++t)
