@@ -73,6 +73,22 @@ thread_local AlignedScratch tl_pack;  // the calling thread's; team threads get 
 
 int64_t ceil_div(int64_t a, int64_t b) { return (a + b - 1) / b; }
 
+// The last step of the two detours below: each segment's rows of C take (or, with ep.accumulate, add) act of a
+// temporary's rows; row i of segment s is at tmp + s * seg_offset + i * row_stride.
+void write_back(const GemmJob& job, const float* tmp, int64_t row_stride, int64_t seg_offset, Act act) {
+  for (int64_t s = 0; s < job.segments; ++s)
+    for (int64_t i = 0; i < job.M; ++i) {
+      const float* src = tmp + s * seg_offset + i * row_stride;
+      float* dst = job.c + s * job.c_seg_stride + i * job.ldc;
+      if (job.ep.accumulate)
+        for (int64_t j = 0; j < job.seg_cols; ++j) dst[j] += apply_act(act, src[j]);
+      else if (act == Act::None)
+        std::copy_n(src, job.seg_cols, dst);
+      else
+        for (int64_t j = 0; j < job.seg_cols; ++j) dst[j] = apply_act(act, src[j]);
+    }
+}
+
 // accumulate + activation over several K passes: the activation needs the full sum, so compute it into a
 // temporary first (rare: residual adds carry no activation in the models).
 void run_gemm_via_temp(const GemmJob& job) {
@@ -85,12 +101,7 @@ void run_gemm_via_temp(const GemmJob& job) {
   t.ep.act = Act::None;
   t.ep.accumulate = false;
   run_gemm(t);
-  for (int64_t s = 0; s < job.segments; ++s)
-    for (int64_t i = 0; i < job.M; ++i) {
-      const float* src = tmp.data() + s * seg_elems + i * job.seg_cols;
-      float* dst = job.c + s * job.c_seg_stride + i * job.ldc;
-      for (int64_t j = 0; j < job.seg_cols; ++j) dst[j] += apply_act(job.ep.act, src[j]);
-    }
+  write_back(job, tmp.data(), job.seg_cols, seg_elems, job.ep.act);
 }
 
 // Segments narrower than a B panel (the U-Net's 4x4 frames: 16 pixels against avx512's 32 columns) leave most of
@@ -103,7 +114,6 @@ struct MergedSegmentsB : BSource {
     thread_local AlignedScratch part_buf;
     const int NR = path.nr;
     float* const part = part_buf.get(size_t(kc * NR));
-    std::fill(dst, dst + kc * NR, 0.0f);
     for (int j0 = 0; j0 < nr;) {  // one run of columns per segment
       const int64_t n = n0 + j0, seg = n / seg_cols, c0 = n % seg_cols;
       const int len = int(std::min<int64_t>(nr - j0, seg_cols - c0));
@@ -111,6 +121,8 @@ struct MergedSegmentsB : BSource {
       for (int64_t k = 0; k < kc; ++k) std::copy_n(part + k * NR, len, dst + k * NR + j0);
       j0 += len;
     }
+    if (nr < NR)
+      for (int64_t k = 0; k < kc; ++k) std::fill(dst + k * NR + nr, dst + (k + 1) * NR, 0.0f);
   }
 };
 
@@ -136,15 +148,7 @@ void run_gemm_merged(const GemmJob& job) {
   t.c_seg_stride = 0;
   t.ep.accumulate = false;
   run_gemm(t);  // tmp [M, segments * seg_cols] = act(A B + bias)
-  for (int64_t s = 0; s < job.segments; ++s)
-    for (int64_t i = 0; i < job.M; ++i) {
-      const float* src = tmp + i * cols + s * job.seg_cols;
-      float* dst = job.c + s * job.c_seg_stride + i * job.ldc;
-      if (job.ep.accumulate)
-        for (int64_t j = 0; j < job.seg_cols; ++j) dst[j] += src[j];
-      else
-        std::copy_n(src, job.seg_cols, dst);
-    }
+  write_back(job, tmp, cols, job.seg_cols, Act::None);
 }
 
 }  // namespace

@@ -102,7 +102,8 @@ const GemmPath& gemm_path(KernelPath which) {
         with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon, pack_im2col_shift_neon,
                        nullptr},
                       false));
-    p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;  // NEON is the AArch64 baseline: the compiler vectorises it
+    // NEON is the AArch64 baseline: the compiler vectorises the portable packer with it.
+    p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;
     return p;
   }();
   if (which == KernelPath::Neon) return neon;

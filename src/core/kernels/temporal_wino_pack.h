@@ -7,11 +7,6 @@
 namespace egopd::gemm_detail {
 namespace {
 
-// Panel i (at dst + i * panel_floats) gets row k, column j of V_i = (Bᵀ d)_i, d_t = in[t][k*ld[t] + j], for j < nr,
-// zero for nr <= j < NR; m + 2 inputs (a frame outside the video is a zero row with ld 0).
-//   F(2,3): V = (d0 - d2, d1 + d2, d2 - d1, d1 - d3)
-//   F(4,3): V = (4d0 - 5d2 + d4, (d3 + d4) - 4(d1 + d2), (d4 - d3) + 4(d1 - d2), (d4 - d2) + 2(d3 - d1),
-//                (d4 - d2) - 2(d3 - d1), 4d1 - 5d3 + d5)
 // One row of the transform over columns [0, n): plain loops on restrict pointers, which the compiler vectorises
 // (F(2,3) uses the first four of each).
 template <int M>
@@ -40,6 +35,11 @@ inline void temporal_wino_row(const float* const (&d)[6], float* const (&v)[6], 
   }
 }
 
+// Panel i (at dst + i * panel_floats) gets row k, column j of V_i = (Bᵀ d)_i, d_t = in[t][k*ld[t] + j], for j < nr,
+// zero for nr <= j < NR; m + 2 inputs (a frame outside the video is a zero row with ld 0).
+//   F(2,3): V = (d0 - d2, d1 + d2, d2 - d1, d1 - d3)
+//   F(4,3): V = (4d0 - 5d2 + d4, (d3 + d4) - 4(d1 + d2), (d4 - d3) + 4(d1 - d2), (d4 - d2) + 2(d3 - d1),
+//                (d4 - d2) - 2(d3 - d1), 4d1 - 5d3 + d5)
 template <int NR, int M>
 void temporal_wino_rows(const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
                         int64_t panel_floats) {

@@ -361,7 +361,7 @@ void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
 }
 
 void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
-                              int64_t panel_floats) {
+                                 int64_t panel_floats) {
   temporal_wino_pack<NR>(m, in, ld, kc, nr, dst, panel_floats);
 }
 
