@@ -351,6 +351,11 @@ TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
       b.act = Act::GELU, a.accumulate = true;
       ASSERT_EQ(run_case(b, seed++), 0);
       ASSERT_EQ(run_case(a, seed++), 0);
+      // The other layout of each: lanes consecutive in memory (B as [K, N], A as [K, M]).
+      Case bc{M, N, K, DType::F32, dt, false, false}, ac{M, N, K, dt, DType::F32, true, false};
+      bc.bf16 = ac.bf16 = true;
+      ASSERT_EQ(run_case(bc, seed++), 0);
+      ASSERT_EQ(run_case(ac, seed++), 0);
     }
 }
 

@@ -11,6 +11,7 @@
 #include <memory>
 #include <cstdlib>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/error.h"
@@ -183,12 +184,8 @@ void run_gemm(const GemmJob& job) {
   const int64_t kNcMax =
       int8 ? std::max<int64_t>(path.nc, kInt8BBlockBytes / (b_panel_floats * 4) * NR) : path.nc;
 
-  // Bf16: every packed panel is rounded (emulated) or turned into bfloat16 pairs (native) right after packing, so A
-  // is always packed.
-  const auto to_bf16 = [&](float* panel, int width, int64_t kc) {
-    if (bf16_pairs) path.to_bf16_pairs(panel, width, kc);
-    else round_to_bf16(panel, kc * width);
-  };
+  // Bf16: every panel is packed as bfloat16 pairs (native) or rounded right after packing (emulated), so A is
+  // always packed.
   // Int8: every packed panel is quantised (see GemmPath::quantize_a_i8), so A is always packed too.
   const MicroKernel uk = int8 ? path.micro_i8 : bf16_pairs ? path.micro_bf16 : path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
@@ -256,8 +253,12 @@ void run_gemm(const GemmJob& job) {
           const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
           const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
           float* panel = b_pack + panel_slot(p) * b_panel_floats;
+          if (bf16_pairs) {
+            job.b->pack_bf16_pairs(path, seg, k0, kc, n0, nr, panel);
+            continue;
+          }
           job.b->pack(path, seg, k0, kc, n0, nr, int8 ? b_float : panel);
-          if (bf16) to_bf16(panel, NR, kc);
+          if (bf16) round_to_bf16(panel, kc * NR);
           if (int8) path.quantize_b_i8(b_float, panel, NR, kc, i8_group);
         }
         if (split_m && nth > 1) {
@@ -278,8 +279,13 @@ void run_gemm(const GemmJob& job) {
           if (!direct_a)
             for (int64_t ir = 0; ir < mc; ir += MR) {
               float* panel = a_pack + ir * kc_slot;
-              job.a->pack(path, ic + ir, int(std::min<int64_t>(MR, mc - ir)), k0, kc, panel);
-              if (bf16) to_bf16(panel, MR, kc);
+              const int mr = int(std::min<int64_t>(MR, mc - ir));
+              if (bf16_pairs) {
+                job.a->pack_bf16_pairs(path, ic + ir, mr, k0, kc, panel);
+                continue;
+              }
+              job.a->pack(path, ic + ir, mr, k0, kc, panel);
+              if (bf16) round_to_bf16(panel, kc * MR);
               if (int8) path.quantize_a_i8(panel, panel, MR, kc, i8_group);
             }
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
@@ -311,17 +317,38 @@ OperandA::OperandA(const Operand& o) : op(o) {
   }
 }
 
-void OperandA::pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
-  const int64_t off = op.trans ? k0 * op.ld + m0 : m0 * op.ld + k0;
+namespace {
+// The panel of `lanes` lanes (A's rows or B's columns) from lane0 and kc depths from k0 of `op` (from element
+// seg_off), with a PackA or PackB; lane_major: element (lane, k) at lane * ld + k, else at k * ld + lane.
+template <class Packer>
+void pack_operand(Packer pack, const Operand& op, int64_t seg_off, bool lane_major, int64_t lane0, int lanes,
+                  int64_t k0, int64_t kc, float* dst) {
+  const int64_t off = seg_off + (lane_major ? lane0 * op.ld + k0 : k0 * op.ld + lane0);
   const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  path.pack_a(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + m0 : nullptr, mr, kc, dst);
+  const float* scale = op.scale ? op.scale + lane0 : nullptr;
+  if constexpr (std::is_same_v<Packer, PackA>) pack(p, op.dtype, op.ld, op.trans, scale, lanes, kc, dst);
+  else pack(p, op.dtype, op.ld, op.trans, scale, kc, lanes, dst);
+}
+}  // namespace
+
+// A(m, k) = data[m*ld + k], or data[k*ld + m] when trans.
+void OperandA::pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
+  pack_operand(path.pack_a, op, 0, !op.trans, m0, mr, k0, kc, dst);
+}
+void OperandA::pack_bf16_pairs(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
+  if (!path.pack_a_bf16) return ASource::pack_bf16_pairs(path, m0, mr, k0, kc, dst);
+  pack_operand(path.pack_a_bf16, op, 0, !op.trans, m0, mr, k0, kc, dst);
 }
 
+// B(k, n) = data[k*ld + n], or data[n*ld + k] when trans.
 void OperandB::pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
                     float* dst) const {
-  const int64_t off = seg * seg_stride + (op.trans ? n0 * op.ld + k0 : k0 * op.ld + n0);
-  const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
-  path.pack_b(p, op.dtype, op.ld, op.trans, op.scale ? op.scale + n0 : nullptr, kc, nr, dst);
+  pack_operand(path.pack_b, op, seg * seg_stride, op.trans, n0, nr, k0, kc, dst);
+}
+void OperandB::pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                               float* dst) const {
+  if (!path.pack_b_bf16) return BSource::pack_bf16_pairs(path, seg, k0, kc, n0, nr, dst);
+  pack_operand(path.pack_b_bf16, op, seg * seg_stride, op.trans, n0, nr, k0, kc, dst);
 }
 
 }  // namespace gemm_detail

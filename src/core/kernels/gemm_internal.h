@@ -80,6 +80,9 @@ struct GemmPath {
   // (x(kc, i) = 0 for odd kc). micro_bf16 multiplies such A and B panels (kc is still the float32 depth).
   void (*to_bf16_pairs)(float* panel, int width, int64_t kc) = nullptr;
   MicroKernel micro_bf16 = nullptr;
+  // pack_a / pack_b followed by to_bf16_pairs, in one pass (set with micro_bf16).
+  PackA pack_a_bf16 = nullptr;
+  PackB pack_b_bf16 = nullptr;
   // Precision::Int8: quantise a packed float32 panel `src` of `width` (MR or NR) lanes and kc rows into `dst`
   // (src itself, in place, or a buffer apart), `group` rows at a time (see I8Group), A's and B's in the format
   // micro_i8 multiplies (group: TileEpilogue::i8_group), i8_per values a 32-bit slot; i8_kernel says which
@@ -108,6 +111,10 @@ void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 void microkernel_avx512_bf16(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void to_bf16_pairs_avx512(float* panel, int width, int64_t kc);
+void pack_a_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                        float* dst);
+void pack_b_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                        float* dst);
 // ---- Int8 panels (Precision::Int8) ----
 // A packed float32 panel of `width` lanes and kc rows is quantised (in place, or into a buffer apart) in groups of
 // `group` rows (gemm.h's K
@@ -161,6 +168,11 @@ struct ASource {
   virtual ~ASource() = default;
   // dst[k*MR + i] = A(m0 + i, k0 + k) for i < mr, 0 for mr <= i < MR, with the MR and packers of `path`.
   virtual void pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const = 0;
+  // The same panel as bfloat16 pairs (GemmPath::to_bf16_pairs; the path has micro_bf16).
+  virtual void pack_bf16_pairs(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
+    pack(path, m0, mr, k0, kc, dst);
+    path.to_bf16_pairs(dst, path.mr, kc);
+  }
 };
 
 // Source of the B operand: `segments` independent column ranges of width seg_cols that share A (frames of a
@@ -170,6 +182,12 @@ struct BSource {
   // dst[k*NR + j] = B_seg(k0 + k, n0 + j) for j < nr, 0 for nr <= j < NR, with the NR and packers of `path`.
   virtual void pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
                     float* dst) const = 0;
+  // The same panel as bfloat16 pairs (GemmPath::to_bf16_pairs; the path has micro_bf16).
+  virtual void pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                               float* dst) const {
+    pack(path, seg, k0, kc, n0, nr, dst);
+    path.to_bf16_pairs(dst, path.nr, kc);
+  }
 };
 
 struct GemmJob {
@@ -190,6 +208,7 @@ struct OperandA : ASource {
   Operand op;
   explicit OperandA(const Operand& o);
   void pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
+  void pack_bf16_pairs(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
 };
 struct OperandB : BSource {
   Operand op;
@@ -197,6 +216,8 @@ struct OperandB : BSource {
   explicit OperandB(const Operand& o, int64_t seg_stride_elems = 0) : op(o), seg_stride(seg_stride_elems) {}
   void pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
             float* dst) const override;
+  void pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                       float* dst) const override;
 };
 
 // Packing primitives of each path (PackA / PackB contracts above). I8 multiplies by scale (already offset to the

@@ -83,7 +83,12 @@ const GemmPath& gemm_path(KernelPath which) {
                                true);
     p.conv3x3_window = conv3x3_window_avx512;
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx512;
-    if (cpu_info().avx512_bf16) p.to_bf16_pairs = to_bf16_pairs_avx512, p.micro_bf16 = microkernel_avx512_bf16;
+    if (cpu_info().avx512_bf16) {
+      p.to_bf16_pairs = to_bf16_pairs_avx512;
+      p.micro_bf16 = microkernel_avx512_bf16;
+      p.pack_a_bf16 = pack_a_bf16_avx512;
+      p.pack_b_bf16 = pack_b_bf16_avx512;
+    }
     p = with_emulated_int8<kMrAvx512, kNrAvx512>(p);
     if (cpu_info().avx512_vnni) {
       p.quantize_a_i8 = quantize_i8_a_avx512_vnni;

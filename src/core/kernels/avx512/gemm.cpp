@@ -360,6 +360,116 @@ void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
                  });
 }
 
+// ---- bfloat16 pair packing (Precision::Bf16 with AVX512-BF16) ------------------------------------------------------
+// pack_a/pack_b_avx512 followed by to_bf16_pairs_avx512, in one pass and with the same values (x, times its scale
+// in float32, rounded to nearest even): slot p*W + j = bf16(x(2p, j)) | bf16(x(2p + 1, j)) << 16, x(kc, j) = 0,
+// lanes >= n zero.
+
+namespace {
+
+// Pairs (lo_j, hi_j) of two 16-lane vectors as 16 32-bit slots.
+__attribute__((target("avx512bf16"), always_inline)) inline __m512i bf16_pairs16(__m512 lo, __m512 hi) {
+  const __m512i interleave = _mm512_set_epi16(31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22,
+                                              6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1, 16, 0);
+  return _mm512_permutexvar_epi16(interleave, (__m512i)_mm512_cvtne2ps_pbh(hi, lo));
+}
+
+template <int W, DType dt>
+__attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_contiguous(const void* p, int64_t ld,
+                                                                                      const float* scale,
+                                                                                      int64_t kc, int n,
+                                                                                      uint32_t* dst) {
+  constexpr int kChunks = (W + 15) / 16;
+  const int64_t es = elem_size(dt);
+  __mmask16 in[kChunks];
+  __m512 s[kChunks];
+  for (int q = 0; q < kChunks; ++q) {
+    in[q] = lanes(n - 16 * q);
+    s[q] = scale ? _mm512_maskz_loadu_ps(in[q], scale + 16 * q) : _mm512_set1_ps(1.0f);
+  }
+  for (int64_t pr = 0; 2 * pr < kc; ++pr) {
+    _mm_prefetch(static_cast<const char*>(p) + (2 * pr * ld + W) * es, _MM_HINT_T1);
+    _mm_prefetch(static_cast<const char*>(p) + ((2 * pr + 1) * ld + W) * es, _MM_HINT_T1);
+    for (int q = 0; q < kChunks; ++q) {
+      __m512 lo = load16(p, dt, 2 * pr * ld + 16 * q, in[q]), hi = _mm512_setzero_ps();
+      if (2 * pr + 1 < kc) hi = load16(p, dt, (2 * pr + 1) * ld + 16 * q, in[q]);
+      if (scale) lo = _mm512_mul_ps(lo, s[q]), hi = _mm512_mul_ps(hi, s[q]);
+      _mm512_mask_storeu_epi32(dst + pr * W + 16 * q, lanes(W - 16 * q), bf16_pairs16(lo, hi));
+    }
+  }
+}
+
+// Each lane its own row: 16 k of a lane become its 8 slots, and 8 lanes' slots are transposed 8 x 8.
+template <int W, DType dt>
+__attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_strided(const void* p, int64_t ld,
+                                                                                   const float* scale, int64_t kc,
+                                                                                   int n, uint32_t* dst) {
+  const int64_t es = elem_size(dt);
+  const char* base = static_cast<const char*>(p);
+  for (int64_t k = 0; k < kc; k += 16) {
+    const __mmask16 m = lanes(int(std::min<int64_t>(16, kc - k)));
+    const int slot_rows = int(std::min<int64_t>(16, kc - k) + 1) / 2;
+    for (int g = 0; g < W; g += 8) {
+      __m256 r[8];
+      for (int j = 0; j < 8; ++j) {
+        const int lane = g + j;
+        if (lane >= n || lane >= W) {
+          r[j] = _mm256_setzero_ps();
+          continue;
+        }
+        // Each lane is a stream of its own: fetch two steps ahead.
+        _mm_prefetch(base + (lane * ld + k + 32) * es, _MM_HINT_T0);
+        __m512 v = load16(p, dt, lane * ld + k, m);
+        if (scale) v = _mm512_mul_ps(v, _mm512_set1_ps(scale[lane]));
+        r[j] = _mm256_castsi256_ps((__m256i)_mm512_cvtneps_pbh(v));
+      }
+      transpose8(r);
+      const __mmask8 wm = __mmask8(W - g >= 8 ? 0xff : (1u << (W - g)) - 1u);
+      for (int q = 0; q < slot_rows; ++q)
+        _mm256_mask_storeu_ps(reinterpret_cast<float*>(dst + (k / 2 + q) * W + g), wm, r[q]);
+    }
+  }
+}
+
+template <int W, DType dt>
+__attribute__((target("avx512bf16"))) void pack_bf16(const void* p, int64_t ld, bool contiguous, const float* scale,
+                                                     int64_t kc, int n, float* dst) {
+  uint32_t* out = reinterpret_cast<uint32_t*>(dst);
+  if (contiguous) pack_bf16_contiguous<W, dt>(p, ld, scale, kc, n, out);
+  else pack_bf16_strided<W, dt>(p, ld, scale, kc, n, out);
+}
+
+template <int W>
+void pack_bf16_panel(const void* p, DType dt, int64_t ld, bool contiguous, const float* scale, int64_t kc, int n,
+                     float* dst) {
+  switch (dt) {
+    case DType::F32: return pack_bf16<W, DType::F32>(p, ld, contiguous, nullptr, kc, n, dst);
+    case DType::F16: return pack_bf16<W, DType::F16>(p, ld, contiguous, nullptr, kc, n, dst);
+    case DType::BF16: return pack_bf16<W, DType::BF16>(p, ld, contiguous, nullptr, kc, n, dst);
+    default: return pack_bf16<W, DType::I8>(p, ld, contiguous, scale, kc, n, dst);
+  }
+}
+
+}  // namespace
+
+void pack_b_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
+                        float* dst) {
+  if (!packable(dt)) {
+    pack_b_portable<NR>(p, dt, ld, trans, scale, kc, nr, dst);
+    return to_bf16_pairs_avx512(dst, NR, kc);
+  }
+  pack_bf16_panel<NR>(p, dt, ld, !trans, scale, kc, nr, dst);
+}
+
+void pack_a_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,
+                        float* dst) {
+  if (!packable(dt)) {
+    pack_a_portable<MR>(p, dt, ld, trans, scale, mr, kc, dst);
+    return to_bf16_pairs_avx512(dst, MR, kc);
+  }
+  pack_bf16_panel<MR>(p, dt, ld, trans, scale, kc, mr, dst);
+}
+
 void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
                                  int64_t panel_floats) {
   temporal_wino_pack<NR>(m, in, ld, kc, nr, dst, panel_floats);
