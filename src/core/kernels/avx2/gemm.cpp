@@ -172,11 +172,10 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 
 namespace {
 
-// 8 lanes from p (the first n of them, the rest zero).
-inline __m256 load_lanes(const float* p, int n) {
-  if (n >= 8) return _mm256_loadu_ps(p);
+// Mask of the first n of 8 lanes (all of them for n >= 8).
+inline __m256i lane_mask(int n) {
   alignas(32) static const int32_t ramp[8] = {0, 1, 2, 3, 4, 5, 6, 7};
-  return _mm256_maskload_ps(p, _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp)));
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp));
 }
 
 // One group of `len` float rows at src into its region at dst (<= src in place, else apart). In place, a chunk of
@@ -188,34 +187,29 @@ void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_
   alignas(32) int32_t sums[kMaxNR] = {};
   const __m256 sign = _mm256_set1_ps(-0.0f);
   for (int ch = 0; ch < chunks; ++ch) {
-    const int n = width - 8 * ch;
+    const __m256i m = lane_mask(width - 8 * ch);
     __m256 v = _mm256_setzero_ps();
-    for (int64_t k = 0; k < len; ++k) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, load_lanes(src + k * width + 8 * ch, n)));
+    for (int64_t k = 0; k < len; ++k)
+      v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_maskload_ps(src + k * width + 8 * ch, m)));
     _mm256_store_ps(mx + 8 * ch, v);
   }
   for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i]), inv[i] = i8_inverse(mx[i]);
   int32_t* out = reinterpret_cast<int32_t*>(dst);
   const __m256i lo = _mm256_set1_epi32(-127), hi = _mm256_set1_epi32(127), half = _mm256_set1_epi32(0xffff);
   for (int ch = 0; ch < chunks; ++ch) {
-    const int n = width - 8 * ch;
+    const __m256i m = lane_mask(width - 8 * ch);
     const __m256 f = _mm256_load_ps(inv + 8 * ch);
     __m256i sum = _mm256_setzero_si256();
     for (int64_t p = 0; p < i8_slot_rows(len, 2); ++p) {
       __m256i packed = _mm256_setzero_si256();
       for (int t = 0; t < 2 && 2 * p + t < len; ++t) {
-        const __m256 x = load_lanes(src + (2 * p + t) * width + 8 * ch, n);
+        const __m256 x = _mm256_maskload_ps(src + (2 * p + t) * width + 8 * ch, m);
         __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));  // nearest even, as nearbyint
         q = _mm256_min_epi32(_mm256_max_epi32(q, lo), hi);
         sum = _mm256_add_epi32(sum, q);
         packed = _mm256_or_si256(packed, _mm256_slli_epi32(_mm256_and_si256(q, half), 16 * t));
       }
-      if (n >= 8) {
-        _mm256_storeu_si256((__m256i*)(out + p * width + 8 * ch), packed);
-      } else {
-        alignas(32) int32_t tmp[8];
-        _mm256_store_si256((__m256i*)tmp, packed);
-        for (int j = 0; j < n; ++j) out[p * width + 8 * ch + j] = tmp[j];
-      }
+      _mm256_maskstore_epi32(out + p * width + 8 * ch, m, packed);
     }
     _mm256_store_si256((__m256i*)(sums + 8 * ch), sum);
   }
