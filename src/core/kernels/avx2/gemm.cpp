@@ -225,48 +225,68 @@ void quantize_i8_pairs_avx2(const float* src, float* dst, int width, int64_t kc,
     quantize_pairs(src + k0 * width, dst + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
 }
 
-// Three rows of the tile at a time (rows r0 + 0..2): 6 accumulators, two B vectors, the A broadcast and a product
-// stay in the 16 registers (all six rows at once made GCC spill half the accumulators); B is re-read from L1.
-#define EGOPD_ROWS3(X) X(0) X(1) X(2)
-#define EGOPD_DECLARE(i) __m256i c##i##0 = _mm256_setzero_si256(), c##i##1 = _mm256_setzero_si256();
-#define EGOPD_DOT(i)                                                    \
-  {                                                                     \
-    const __m256i av = _mm256_set1_epi32(a[r0 + (i)]);                  \
-    c##i##0 = _mm256_add_epi32(c##i##0, _mm256_madd_epi16(av, b0));     \
-    c##i##1 = _mm256_add_epi32(c##i##1, _mm256_madd_epi16(av, b1));     \
-  }
+// All six rows at once: twelve accumulators (ymm0-11), two B vectors (ymm12-13), the A broadcast (ymm14) and a
+// product (ymm15) fill the 16 registers exactly, so the pair loop is assembly (with intrinsics GCC spilled half the
+// accumulators; three rows at a time re-read B and ran 1.1-1.2x slower). The int32 sums of a group go to `acc`
+// (row i at acc + 16 i).
+#define EGOPD_ROW_ASM(i, c0, c1)                                    \
+  "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"                        \
+  "vpmaddwd %%ymm12, %%ymm14, %%ymm15\n\t"                          \
+  "vpaddd %%ymm15, %%ymm" #c0 ", %%ymm" #c0 "\n\t"                  \
+  "vpmaddwd %%ymm13, %%ymm14, %%ymm15\n\t"                          \
+  "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
+#define EGOPD_STORE_ASM(i, c0, c1)                 \
+  "vmovdqa %%ymm" #c0 ", " #i "*64(%[acc])\n\t"    \
+  "vmovdqa %%ymm" #c1 ", " #i "*64+32(%[acc])\n\t"
 // Every path adds a group as sum = fma(float(int32 sum), s_row * s_col, sum): explicit, so that no path's
 // compiler contraction makes the results differ.
 #define EGOPD_SCALE(i)                                                                                        \
   {                                                                                                           \
-    float* row = sum + (r0 + (i)) * NR;                                                                       \
-    const __m256 sa = _mm256_broadcast_ss(pa.scale + r0 + (i));                                               \
-    _mm256_store_ps(row, _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##0), _mm256_mul_ps(sa, sb0), _mm256_load_ps(row))); \
-    _mm256_store_ps(row + 8,                                                                                  \
-                    _mm256_fmadd_ps(_mm256_cvtepi32_ps(c##i##1), _mm256_mul_ps(sa, sb1), _mm256_load_ps(row + 8))); \
+    float* row = sum + (i) * NR;                                                                              \
+    const __m256 sa = _mm256_broadcast_ss(pa.scale + (i));                                                    \
+    const __m256i s0 = _mm256_load_si256((const __m256i*)(acc + (i) * NR));                                   \
+    const __m256i s1 = _mm256_load_si256((const __m256i*)(acc + (i) * NR + 8));                               \
+    _mm256_store_ps(row, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s0), _mm256_mul_ps(sa, sb0), _mm256_load_ps(row))); \
+    _mm256_store_ps(row + 8, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s1), _mm256_mul_ps(sa, sb1), _mm256_load_ps(row + 8))); \
   }
 
 void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, const float* b_panel, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  static_assert(MR == 6 && NR == 16, "the assembly below is the 6 x 16 tile");
   alignas(32) float sum[MR * NR] = {};  // float sums of the groups (gemm_internal.h: I8Group)
+  alignas(32) int32_t acc[MR * NR];
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
     const I8Group pa(a_panel, MR, ep.i8_group, 2, g), pb(b_panel, NR, ep.i8_group, 2, g);
     const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
-    const int64_t pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2);
-    for (int r0 = 0; r0 < mr; r0 += 3) {
-      const int32_t* a = pa.slots;
-      const int32_t* b = pb.slots;
-      EGOPD_ROWS3(EGOPD_DECLARE)
-#pragma GCC unroll 4
-      for (int64_t p = 0; p < pairs; ++p) {
-        const __m256i b0 = _mm256_loadu_si256((const __m256i*)b), b1 = _mm256_loadu_si256((const __m256i*)(b + 8));
-        _mm_prefetch(reinterpret_cast<const char*>(b + 8 * NR), _MM_HINT_T0);
-        EGOPD_ROWS3(EGOPD_DOT)
-        a += MR;
-        b += NR;
-      }
-      EGOPD_ROWS3(EGOPD_SCALE)
-    }
+    int64_t pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2);
+    const int32_t* a = pa.slots;
+    const int32_t* b = pb.slots;
+    asm volatile(
+        "vpxor %%xmm0, %%xmm0, %%xmm0\n\t"
+        "vmovdqa %%ymm0, %%ymm1\n\t" "vmovdqa %%ymm0, %%ymm2\n\t" "vmovdqa %%ymm0, %%ymm3\n\t"
+        "vmovdqa %%ymm0, %%ymm4\n\t" "vmovdqa %%ymm0, %%ymm5\n\t" "vmovdqa %%ymm0, %%ymm6\n\t"
+        "vmovdqa %%ymm0, %%ymm7\n\t" "vmovdqa %%ymm0, %%ymm8\n\t" "vmovdqa %%ymm0, %%ymm9\n\t"
+        "vmovdqa %%ymm0, %%ymm10\n\t" "vmovdqa %%ymm0, %%ymm11\n\t"
+        "test %[n], %[n]\n\t"
+        "jz 2f\n\t"
+        "1:\n\t"
+        "vmovdqu (%[b]), %%ymm12\n\t"
+        "vmovdqu 32(%[b]), %%ymm13\n\t"
+        "prefetcht0 1024(%[b])\n\t"  // 16 pair rows ahead, as the float32 kernel's kPrefetchB
+        EGOPD_ROW_ASM(0, 0, 1) EGOPD_ROW_ASM(1, 2, 3) EGOPD_ROW_ASM(2, 4, 5)
+        EGOPD_ROW_ASM(3, 6, 7) EGOPD_ROW_ASM(4, 8, 9) EGOPD_ROW_ASM(5, 10, 11)
+        "add $24, %[a]\n\t"
+        "add $64, %[b]\n\t"
+        "dec %[n]\n\t"
+        "jnz 1b\n\t"
+        "2:\n\t"
+        EGOPD_STORE_ASM(0, 0, 1) EGOPD_STORE_ASM(1, 2, 3) EGOPD_STORE_ASM(2, 4, 5)
+        EGOPD_STORE_ASM(3, 6, 7) EGOPD_STORE_ASM(4, 8, 9) EGOPD_STORE_ASM(5, 10, 11)
+        : [a] "+r"(a), [b] "+r"(b), [n] "+r"(pairs)
+        : [acc] "r"(acc)
+        : "cc", "memory", "xmm0", "xmm1", "xmm2", "xmm3", "xmm4", "xmm5", "xmm6", "xmm7", "xmm8", "xmm9", "xmm10",
+          "xmm11", "xmm12", "xmm13", "xmm14", "xmm15");
+    EGOPD_SCALE(0) EGOPD_SCALE(1) EGOPD_SCALE(2) EGOPD_SCALE(3) EGOPD_SCALE(4) EGOPD_SCALE(5)
   }
   const auto row = [&](int i, int half) { return _mm256_load_ps(sum + i * NR + 8 * half); };
   store_tile(c, ldc, mr, nr, ep, row(0, 0), row(0, 1), row(1, 0), row(1, 1), row(2, 0), row(2, 1), row(3, 0),
@@ -274,9 +294,8 @@ void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, con
 }
 
 #undef EGOPD_SCALE
-#undef EGOPD_DOT
-#undef EGOPD_DECLARE
-#undef EGOPD_ROWS3
+#undef EGOPD_STORE_ASM
+#undef EGOPD_ROW_ASM
 
 // ---- packing --------------------------------------------------------------------------------------------------
 
