@@ -309,6 +309,22 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
     ASSERT_TRUE(b.ncb > 1 && b.ntb == 1) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
   }
+  // The smaller U block (budget.filter_near) where V's per-position slice fits in 3/4 of L2, budget.filter where it
+  // does not.
+  budget = wino_detail::WinogradBudgets{};
+  const int64_t l2 = cpu_info().l2 > 0 ? cpu_info().l2 : 512 * 1024, a2 = 36, cin = 64, cout = 8 * MR;
+  budget.filter = a2 * cin * 4 * cout;  // every output channel in one block
+  budget.filter_near = a2 * cin * 4 * 2 * MR;
+  budget.min_block_tiles = L;
+  budget.tiles = budget.whole_tiles = a2 * (cin + cout) * 4 * 4 * L;  // blocks of four panels of tiles
+  ASSERT_LE(4 * L * cin * 4, l2 * 3 / 4);
+  wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, 4 * L, a2, MR, L);
+  EXPECT_EQ(b.co, 2 * MR);
+  EXPECT_EQ(run_wino({1, cin, cout, 8 * 4, L}, WinogradTile::F4x4, seed++), 0);  // 8 x L/4 tiles of 4x4: 2 L
+  const int64_t wide = l2 / (cin * 4) / L * L + L;  // tiles whose slice exceeds 3/4 of L2 in one block
+  budget.tiles = budget.whole_tiles = int64_t(1) << 40;
+  b = wino_detail::winograd_blocking(cin, cout, wide, a2, MR, L);
+  EXPECT_EQ(b.co, cout);
 }
 
 TEST_P(WinogradTest, WeightDtypesAndEpilogues) {

@@ -65,6 +65,7 @@ const WinogradKernels& winograd_kernels_neon();
 // on small shapes.
 struct WinogradBudgets {
   int64_t filter = int64_t(16) << 20;       // U: one block of output channels ...
+  int64_t filter_near = 0;                   // ... or at most this (0: 4x L2) where V's slice fits in L2
   int64_t whole_filter = int64_t(48) << 20;  // ... or all of them, rather than transforming V again per block
   int64_t tiles = int64_t(4) << 20;         // V + M: one block of tiles ...
   int64_t whole_tiles = int64_t(32) << 20;  // ... or all tiles, when several blocks of output channels share them
