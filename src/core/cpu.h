@@ -20,6 +20,9 @@ struct CpuInfo {
   bool neon_dotprod = false; // ARMv8.2 dot product (HWCAP asimddp); reported only
   // Per-core data caches in bytes (0 when unknown; the kernels then assume 32 KiB / 512 KiB / 16 MiB).
   int64_t l1d = 0, l2 = 0, l3 = 0;
+  // The sizes the kernels block for: the measured ones, or those assumed when unknown.
+  int64_t l1d_bytes() const { return l1d > 0 ? l1d : int64_t(32) << 10; }
+  int64_t l2_bytes() const { return l2 > 0 ? l2 : int64_t(512) << 10; }
 };
 const CpuInfo& cpu_info();
 

@@ -312,7 +312,7 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
   // The smaller U block (budget.filter_near) where V's per-position slice fits in 3/4 of L2, budget.filter where it
   // does not.
   budget = wino_detail::WinogradBudgets{};
-  const int64_t l2 = cpu_info().l2 > 0 ? cpu_info().l2 : 512 * 1024, a2 = 36, cin = 64, cout = 8 * MR;
+  const int64_t l2 = cpu_info().l2_bytes(), a2 = 36, cin = 64, cout = 8 * MR;
   budget.filter = a2 * cin * 4 * cout;  // every output channel in one block
   budget.filter_near = a2 * cin * 4 * 2 * MR;
   budget.min_block_tiles = L;

@@ -27,7 +27,7 @@ int64_t env_int(const char* name, int64_t fallback) {
 //    96-240 on AMD EPYC Zen 5, one thread, U-Net shapes).
 GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
   const CpuInfo& ci = cpu_info();
-  const int64_t l1 = ci.l1d > 0 ? ci.l1d : 32 * 1024, l2 = ci.l2 > 0 ? ci.l2 : 512 * 1024;
+  const int64_t l1 = ci.l1d_bytes(), l2 = ci.l2_bytes();
   const int64_t panel_bytes = p.nr * 4;  // of one k step of a B micro-panel
   int64_t kc = kc_from_l2 ? std::clamp<int64_t>(l2 / 12 / panel_bytes / 32 * 32, 128, 1024)
                           : std::clamp<int64_t>(l1 * 3 / 4 / panel_bytes / 16 * 16, 128, 512);

@@ -79,10 +79,10 @@ WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, in
   const WinogradBlocking b = plan_blocking(K, cout, ntiles, a2, mr, L, budget.filter);
   // The GEMM of one tile position multiplies U's slice (co x K) by V's (tb x K). Where V's slice takes at most 3/4
   // of L2, a block of U within budget.filter_near (4x L2) keeps U's slices near too (U-Net, 16 frames, AMD EPYC Zen
-  // 5 class, 1 MiB L2: 1280 channels on 8x8 1.4x faster, 960->640 on 16x16 1.3x, 640->1280 on 8x8 1.2x). Where V's
-  // slice alone exceeds that (1920->640 on 16x16), smaller U blocks only re-read V more often (1.1x slower): those
-  // keep budget.filter.
-  const int64_t l2 = cpu_info().l2 > 0 ? cpu_info().l2 : 512 * 1024, v_fits = l2 * 3 / 4;
+  // 5 class, 1 MiB L2, alternating runs: 1280 channels on 8x8 1.2-1.4x faster, 960->640 on 16x16 1.06-1.3x,
+  // 640->1280 on 8x8 1.03-1.2x). Where V's slice alone exceeds that (1920->640 on 16x16), smaller U blocks only
+  // re-read V more often (1.1x slower): those keep budget.filter (the early return only skips planning twice).
+  const int64_t l2 = cpu_info().l2_bytes(), v_fits = l2 * 3 / 4;
   const int64_t near = std::min(budget.filter, budget.filter_near > 0 ? budget.filter_near : 4 * l2);
   if (b.tb * K * 4 > v_fits) return b;
   const WinogradBlocking n = plan_blocking(K, cout, ntiles, a2, mr, L, near);

@@ -3,6 +3,7 @@
 // scalar tails). Only reached through the avx512 kernel path; everything below the pragma is plain static code.
 #include <algorithm>
 #include <cstdint>
+#include <type_traits>
 
 #include "core/kernels/gemm_internal.h"
 
@@ -316,27 +317,31 @@ __attribute__((always_inline)) inline int64_t pack_strided(const void* p, DType 
 bool packable(DType dt) { return dt == DType::F32 || dt == DType::F16 || dt == DType::BF16 || dt == DType::I8; }
 int64_t elem_size(DType dt) { return dt == DType::F32 ? 4 : dt == DType::I8 ? 1 : 2; }
 
+// f(std::integral_constant<DType, dt>{}, scale) for a packable dt, so that the inlined packers see the dtype as a
+// constant; only I8 carries a scale.
+template <class F>
+__attribute__((always_inline)) inline auto with_packable_dtype(DType dt, const float* scale, F f) {
+  switch (dt) {
+    case DType::F32: return f(std::integral_constant<DType, DType::F32>{}, nullptr);
+    case DType::F16: return f(std::integral_constant<DType, DType::F16>{}, nullptr);
+    case DType::BF16: return f(std::integral_constant<DType, DType::BF16>{}, nullptr);
+    default: return f(std::integral_constant<DType, DType::I8>{}, scale);
+  }
+}
+
 // A W-wide panel (B's columns, W = NR, or A's rows, W = MR). `contiguous`: the W lanes are consecutive in memory
 // (B not transposed, A transposed); otherwise each lane is its own row of length kc. `rest` packs the K tail of
 // the strided case (and partial panels of it) with the portable packer of the same contract.
 template <int W>
 void pack_panel(const void* p, DType dt, int64_t ld, bool contiguous, const float* scale, int64_t kc, int n,
                 float* dst, void (*rest)(const void*, DType, int64_t, const float*, int64_t, int, float*)) {
-  if (contiguous) {
-    switch (dt) {
-      case DType::F32: return pack_contiguous<W>(p, DType::F32, ld, nullptr, kc, n, dst);
-      case DType::F16: return pack_contiguous<W>(p, DType::F16, ld, nullptr, kc, n, dst);
-      case DType::BF16: return pack_contiguous<W>(p, DType::BF16, ld, nullptr, kc, n, dst);
-      default: return pack_contiguous<W>(p, DType::I8, ld, scale, kc, n, dst);
-    }
-  }
+  if (contiguous)
+    return with_packable_dtype(dt, scale,
+                               [&](auto t, const float* s) { pack_contiguous<W>(p, t(), ld, s, kc, n, dst); });
   int64_t done = 0;
-  if (n == W) switch (dt) {
-      case DType::F32: done = pack_strided<W>(p, DType::F32, ld, nullptr, kc, dst); break;
-      case DType::F16: done = pack_strided<W>(p, DType::F16, ld, nullptr, kc, dst); break;
-      case DType::BF16: done = pack_strided<W>(p, DType::BF16, ld, nullptr, kc, dst); break;
-      default: done = pack_strided<W>(p, DType::I8, ld, scale, kc, dst); break;
-    }
+  if (n == W)
+    done = with_packable_dtype(dt, scale,
+                               [&](auto t, const float* s) { return pack_strided<W>(p, t(), ld, s, kc, dst); });
   if (done < kc) rest(static_cast<const char*>(p) + done * elem_size(dt), dt, ld, scale, kc - done, n, dst + done * W);
 }
 
@@ -442,12 +447,7 @@ __attribute__((target("avx512bf16"))) void pack_bf16(const void* p, int64_t ld, 
 template <int W>
 void pack_bf16_panel(const void* p, DType dt, int64_t ld, bool contiguous, const float* scale, int64_t kc, int n,
                      float* dst) {
-  switch (dt) {
-    case DType::F32: return pack_bf16<W, DType::F32>(p, ld, contiguous, nullptr, kc, n, dst);
-    case DType::F16: return pack_bf16<W, DType::F16>(p, ld, contiguous, nullptr, kc, n, dst);
-    case DType::BF16: return pack_bf16<W, DType::BF16>(p, ld, contiguous, nullptr, kc, n, dst);
-    default: return pack_bf16<W, DType::I8>(p, ld, contiguous, scale, kc, n, dst);
-  }
+  with_packable_dtype(dt, scale, [&](auto t, const float* s) { pack_bf16<W, t()>(p, ld, contiguous, s, kc, n, dst); });
 }
 
 }  // namespace
