@@ -200,7 +200,7 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
         for (int64_t t = b0; t < b1; ++t) {
           const auto [f, n0, nr] = tile_at(t);
           float* c = y + (f * cout + m0) * plane + n0;
-          prefetch_c(c, plane, mr, te);
+          prefetch_c(c, plane, mr);
           store_tile(sums_of(b0, t, q), c, plane, mr, nr, te);
         }
       }

@@ -64,7 +64,7 @@ __attribute__((always_inline)) inline void k_loop(int64_t kc, const float* a, in
 
 void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                         int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
-  prefetch_c(c, ldc, mr, ep);
+  prefetch_c(c, ldc, mr);
   alignas(64) float sum[MR * NR];
   if (a_rs == 1 && a_cs == MR) {
     k_loop<false>(kc, a, 0, b, sum, true);
@@ -114,7 +114,7 @@ __attribute__((target("avx512bf16"))) void microkernel_avx512_bf16(int64_t kc, c
                                                                    int64_t, const float* b_panel, float* c,
                                                                    int64_t ldc, int mr, int nr,
                                                                    const TileEpilogue& ep) {
-  prefetch_c(c, ldc, mr, ep);
+  prefetch_c(c, ldc, mr);
   const uint32_t* a = reinterpret_cast<const uint32_t*>(a_panel);
   const uint32_t* b = reinterpret_cast<const uint32_t*>(b_panel);
   EGOPD_ROWS(EGOPD_DECLARE)
@@ -226,7 +226,7 @@ __attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, c
                                                                    int64_t, const float* b_panel, float* c,
                                                                    int64_t ldc, int mr, int nr,
                                                                    const TileEpilogue& ep) {
-  prefetch_c(c, ldc, mr, ep);
+  prefetch_c(c, ldc, mr);
   // Float sums of the groups (gemm_internal.h: I8Group) in `sum`, the int32 ones of a group in registers.
   alignas(64) float sum[MR * NR];
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
