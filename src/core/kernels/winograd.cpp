@@ -99,7 +99,7 @@ void apply_act_inplace(Act act, float* v, int64_t n) {
 }
 
 const WinogradKernels& winograd_kernels_portable() {
-  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrPortable>();
+  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrPortable, gemm_detail::kMrPortable>();
   return k;
 }
 
@@ -143,17 +143,6 @@ PanelGeom panel_geom(int64_t g0, int nt, int64_t tiles_x, int64_t tpf, int64_t h
   return pg;
 }
 
-// g[t*L + j] = weight(o, c0 + j, tap t) for j < len, 0 for len <= j < L, of int8 weights dequantised with the
-// output channel's scale (float weights go through the path's B packer instead).
-void load_filters_i8(const Operand& wt, int64_t cin, int64_t o, int64_t c0, int len, int L, float* g) {
-  const int8_t* src = static_cast<const int8_t*>(wt.data) + (o * cin + c0) * 9;
-  const float scale = wt.scale[o];
-  for (int j = 0; j < len; ++j)
-    for (int t = 0; t < 9; ++t) g[t * L + j] = float(src[j * 9 + t]) * scale;
-  for (int t = 0; t < 9; ++t)
-    for (int j = len; j < L; ++j) g[t * L + j] = 0.0f;
-}
-
 }  // namespace
 
 const char* winograd_tile_name(WinogradTile t) { return t == WinogradTile::F4x4 ? "F(4x4,3x3)" : "F(2x2,3x3)"; }
@@ -182,7 +171,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
   const wino_detail::WinogradKernels& kern = wino_detail::winograd_kernels(kernel_path());
   const int L = kern.lanes, MR = path.mr;
-  if (L != path.nr || MR > wino_detail::kMaxRows)
+  if (L != path.nr || MR != kern.rows || MR > wino_detail::kMaxRows)
     throw Error("conv2d (winograd): transform lanes do not match the GEMM panels");
   const int64_t tiles_x = ceil_div(w, m), tpf = ceil_div(h, m) * tiles_x, ntiles = n * tpf;
   const int64_t K = std::max<int64_t>(cin, 1);
@@ -202,36 +191,28 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const int64_t nchunks = ceil_div(co, chunk_rows);
   const int64_t cchunks = ceil_div(K, L);
 
-  // One item: the MR output channels of one A panel times L input channels, so that U is written as whole
-  // contiguous runs of the packed panel (writing it channel by channel touches every cache line MR times).
+  // One item: the MR output channels of one A panel times up to L input channels. The path's A packer converts and
+  // transposes their weights, g[(c*9 + t)*MR + i] = w(o + i, c0 + c, t) (rows past cout zero); each input channel
+  // is then transformed with lanes over the MR output channels, straight into U's packed panel. (Transforming with
+  // lanes over input channels instead needs a transpose of all 36 or 16 transformed positions, not of the 9 taps.)
   const auto filter_phase = [&](int64_t cb) {
     const int64_t o0 = cb * co;
-    alignas(64) float g[9 * wino_detail::kMaxLanes];
-    alignas(64) float u[wino_detail::kMaxRows][36 * wino_detail::kMaxLanes];
+    alignas(64) float g[9 * wino_detail::kMaxLanes * wino_detail::kMaxRows];
 #pragma omp for collapse(2) schedule(static)
     for (int64_t op = 0; op < co / MR; ++op)
       for (int64_t cc = 0; cc < cchunks; ++cc) {
-        const int64_t c0 = cc * L;
+        const int64_t c0 = cc * L, o = o0 + op * MR;
         const int len = int(std::clamp<int64_t>(cin - c0, 1, L));  // cin == 0: one zero column (K = 1)
-        for (int i = 0; i < MR; ++i) {
-          const int64_t o = o0 + op * MR + i;
-          if (o < cout && cin > 0) {
-            if (weight.dtype == DType::I8) {
-              load_filters_i8(weight, cin, o, c0, len, L, g);
-            } else {  // g[t*L + j] = w(o, c0 + j, t): the path's B packer (converts and transposes in registers)
-              const int64_t first = (o * cin + c0) * 9;
-              path.pack_b(static_cast<const char*>(weight.data) + first * int64_t(dtype_size(weight.dtype)),
-                          weight.dtype, 9, true, nullptr, 9, len, g);
-            }
-            kern.filter[ti](g, u[i]);
-          } else {
-            std::fill_n(u[i], a2 * L, 0.0f);
-          }
+        const int rows = int(std::clamp<int64_t>(cout - o, 0, MR));
+        float* const dst = U + op * MR * K + c0 * MR;
+        if (rows == 0 || cin == 0) {
+          for (int64_t xi = 0; xi < a2; ++xi) std::fill_n(dst + xi * u_xi, len * MR, 0.0f);
+          continue;
         }
-        // U[xi][op][c0 + j][i] = u[i][xi*L + j]: the path's A packer (register transposes)
-        for (int64_t xi = 0; xi < a2; ++xi)
-          path.pack_a(&u[0][xi * L], DType::F32, 36 * wino_detail::kMaxLanes, false, nullptr, MR, len,
-                      U + xi * u_xi + op * MR * K + c0 * MR);
+        const int64_t first = (o * cin + c0) * 9;
+        path.pack_a(static_cast<const char*>(weight.data) + first * int64_t(dtype_size(weight.dtype)), weight.dtype,
+                    cin * 9, false, weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
+        for (int c = 0; c < len; ++c) kern.filter[ti](g + c * 9 * MR, dst + c * MR, u_xi);
       }
   };
 

@@ -44,12 +44,14 @@ struct OutputEpilogue {
 // Output transform of one output channel of one panel: src[xi*xi_stride + j] is M[xi] of tile j.
 using OutputPanelFn = void (*)(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep);
 
-// Filter transform of L (output, input) channel pairs: g[t*L + j] (tap t = ky*3 + kx) -> u[xi*L + j] = G g Gᵀ.
-using FilterFn = void (*)(const float* g, float* u);
+// Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
+// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels.
+using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride);
 
 // One kernel path's transforms, indexed by tile: [0] F(2x2,3x3), [1] F(4x4,3x3).
 struct WinogradKernels {
   int lanes = 16;  // L, the NR of the path's GEMM
+  int rows = 6;    // R, the MR of the path's GEMM
   InputPanelFn input[2] = {};
   OutputPanelFn output[2] = {};
   FilterFn filter[2] = {};

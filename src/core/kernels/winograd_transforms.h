@@ -181,14 +181,14 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
   }
 }
 
-template <int M, int L>
-void filter_lanes(const float* g, float* u) {
+template <int M, int R>
+void filter_rows(const float* g, float* u, int64_t xi_stride) {
   constexpr int A = Transform<M>::A;
-  alignas(64) float ut[A * A][L];
-  for (int j = 0; j < L; ++j) {
+  alignas(64) float ut[A * A][R];
+  for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
-      const float row[3] = {g[(p * 3) * L + j], g[(p * 3 + 1) * L + j], g[(p * 3 + 2) * L + j]};
+      const float row[3] = {g[(p * 3) * R + j], g[(p * 3 + 1) * R + j], g[(p * 3 + 2) * R + j]};
       Transform<M>::g(row, t[p]);
     }
     for (int l = 0; l < A; ++l) {
@@ -198,19 +198,20 @@ void filter_lanes(const float* g, float* u) {
       for (int k = 0; k < A; ++k) ut[k * A + l][j] = v[k];
     }
   }
-  std::copy_n(&ut[0][0], A * A * L, u);  // (stores through u could alias g: see input_panel)
+  for (int xi = 0; xi < A * A; ++xi) std::copy_n(ut[xi], R, u + xi * xi_stride);
 }
 
-template <int L>
+template <int L, int R>
 WinogradKernels make_winograd_kernels() {
   WinogradKernels k;
   k.lanes = L;
+  k.rows = R;
   k.input[0] = input_panel<2, L>;
   k.input[1] = input_panel<4, L>;
   k.output[0] = output_panel<2, L>;
   k.output[1] = output_panel<4, L>;
-  k.filter[0] = filter_lanes<2, L>;
-  k.filter[1] = filter_lanes<4, L>;
+  k.filter[0] = filter_rows<2, R>;
+  k.filter[1] = filter_rows<4, R>;
   return k;
 }
 

@@ -9,7 +9,7 @@
 namespace egopd::wino_detail {
 
 const WinogradKernels& winograd_kernels_avx2() {
-  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrAvx2>();
+  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrAvx2, gemm_detail::kMrAvx2>();
   return k;
 }
 

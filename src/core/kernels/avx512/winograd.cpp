@@ -9,7 +9,7 @@
 namespace egopd::wino_detail {
 
 const WinogradKernels& winograd_kernels_avx512() {
-  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrAvx512>();
+  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrAvx512, gemm_detail::kMrAvx512>();
   return k;
 }
 

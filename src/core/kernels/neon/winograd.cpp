@@ -7,7 +7,7 @@
 namespace egopd::wino_detail {
 
 const WinogradKernels& winograd_kernels_neon() {
-  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrNeon>();
+  static const WinogradKernels k = make_winograd_kernels<gemm_detail::kNrNeon, gemm_detail::kMrNeon>();
   return k;
 }
 
