@@ -1,9 +1,9 @@
 #pragma once
-// Winograd transforms written once as loops over L lanes (tiles, or channel pairs) with compile-time trip counts, so
-// that each kernel path's file compiles them with its own instruction set (#pragma GCC target before including
-// this header) and the compiler vectorises the lane loops. Everything is in an unnamed namespace: each path's
-// translation unit gets its own copy, compiled for its instruction set, never merged with another path's by the
-// linker. Include only from winograd.cpp and kernels/<path>/winograd.cpp.
+// Winograd transforms written once as loops over lanes (L tiles, or R output channels of the filters) with
+// compile-time trip counts, so that each kernel path's file compiles them with its own instruction set (#pragma GCC
+// target before including this header) and the compiler vectorises the lane loops. Everything is in an unnamed
+// namespace: each path's translation unit gets its own copy, compiled for its instruction set, never merged with
+// another path's by the linker. Include only from winograd.cpp and kernels/<path>/winograd.cpp.
 //
 // Matrices (Lavin & Gray, "Fast Algorithms for Convolutional Neural Networks", points 0, ±1, ±2 for F(4x4)):
 //   F(2x2,3x3): Bᵀ = [1 0 -1 0; 0 1 1 0; 0 -1 1 0; 0 1 0 -1], G = [1 0 0; ½ ½ ½; ½ -½ ½; 0 0 1],

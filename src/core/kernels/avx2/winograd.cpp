@@ -1,5 +1,5 @@
 // Winograd transforms on the avx2 path: the lane loops of winograd_transforms.h compiled for AVX2/FMA, 16 lanes
-// (the NR of the AVX2 GEMM).
+// (the NR of the AVX2 GEMM; 6 filter lanes, its MR).
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 

@@ -1,5 +1,5 @@
 // Winograd transforms on the avx512 path: the lane loops of winograd_transforms.h compiled for AVX-512, 32 lanes
-// (the NR of the AVX-512 GEMM).
+// (the NR of the AVX-512 GEMM; 12 filter lanes, its MR).
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 

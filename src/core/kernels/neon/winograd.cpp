@@ -1,5 +1,5 @@
 // Winograd transforms on the neon path: the lane loops of winograd_transforms.h (Advanced SIMD is part of every
-// AArch64 target), 12 lanes (the NR of the NEON GEMM).
+// AArch64 target), 12 lanes (the NR of the NEON GEMM; 8 filter lanes, its MR).
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 #include "core/kernels/winograd_transforms.h"
