@@ -329,7 +329,7 @@ template <class Packer>
 void pack_operand(Packer pack, const Operand& op, int64_t seg_off, bool lane_major, int64_t lane0, int lanes,
                   int64_t k0, int64_t kc, float* dst) {
   const int64_t off = seg_off + (lane_major ? lane0 * op.ld + k0 : k0 * op.ld + lane0);
-  const void* p = static_cast<const char*>(op.data) + off * int64_t(dtype_size(op.dtype));
+  const void* p = op.element(off);
   const float* scale = op.scale ? op.scale + lane0 : nullptr;
   if constexpr (std::is_same_v<Packer, PackA>) pack(p, op.dtype, op.ld, op.trans, scale, lanes, kc, dst);
   else pack(p, op.dtype, op.ld, op.trans, scale, kc, lanes, dst);

@@ -19,6 +19,8 @@ struct Operand {
   int64_t ld = 0;
   bool trans = false;
   const float* scale = nullptr;  // I8 only: one scale per output channel (per column of B, per row of A)
+  // The address of stored element i (counted from data, in elements of dtype).
+  const void* element(int64_t i) const { return static_cast<const char*>(data) + i * int64_t(dtype_size(dtype)); }
 };
 
 inline Operand f32_operand(const float* p, int64_t ld, bool trans = false) { return {p, DType::F32, ld, trans, nullptr}; }

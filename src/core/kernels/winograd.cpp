@@ -209,9 +209,8 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
           for (int64_t xi = 0; xi < a2; ++xi) std::fill_n(dst + xi * u_xi, len * MR, 0.0f);
           continue;
         }
-        const int64_t first = (o * cin + c0) * 9;
-        path.pack_a(static_cast<const char*>(weight.data) + first * int64_t(dtype_size(weight.dtype)), weight.dtype,
-                    cin * 9, false, weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
+        path.pack_a(weight.element((o * cin + c0) * 9), weight.dtype, cin * 9, false,
+                    weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
         for (int c = 0; c < len; ++c) kern.filter[ti](g + c * 9 * MR, dst + c * MR, u_xi);
       }
   };
