@@ -19,6 +19,7 @@
 #include "core/cpu.h"
 #include "core/dtype.h"
 #include "core/kernels/gemm.h"
+#include "core/kernels/gemm_internal.h"
 #include "core/threading.h"
 
 namespace egopd {
@@ -234,11 +235,12 @@ TEST_P(GemmTest, AwkwardShapesAllTransposes) {
 }
 
 TEST_P(GemmTest, LargeAndMultiBlockShapes) {
-  // 300x257x129: tails everywhere; K = 800 and 1000: several K passes; M = 450: several M blocks per thread;
-  // N = 2100: several column blocks; M < N: the threads split N instead of M, unsynchronised, through K blocks
-  // of unequal depth and column blocks of unequal width (10 x 2060 x 800).
+  // 300x257x129: tails everywhere; K = 800, 1000 and 2 KC + 37: several K passes (the last on every path's KC);
+  // M = 450: several M blocks per thread; N = 2100: several column blocks; M < N: the threads split N instead of
+  // M, unsynchronised, through K blocks of unequal depth and column blocks of unequal width (10 x 2060 x 800).
+  const int64_t kc = gemm_detail::gemm_path().kc;
   const Case cases[] = {{300, 257, 129}, {97, 45, 800}, {450, 33, 70}, {13, 2100, 9}, {3, 1000, 40},
-                        {64, 320, 1000}, {10, 2060, 800}};
+                        {64, 320, 1000}, {10, 2060, 800}, {40, 70, 2 * kc + 37}};
   uint32_t seed = 100;
   for (Case c : cases)
     for (int t = 0; t < 4; ++t) {
@@ -265,7 +267,8 @@ TEST_P(GemmTest, Epilogues) {
   for (Act act : {Act::None, Act::SiLU, Act::GELU, Act::QuickGELU})
     for (int bias : {0, 1, 2})
       for (bool acc : {false, true})
-        for (int64_t K : {19, 900}) {  // one K pass, and several (accumulate + act goes through a temporary)
+        for (int64_t K : {int64_t(19), gemm_detail::gemm_path().kc + 5}) {  // one K pass, and two (accumulate + act
+                                                                          // goes through a temporary)
           Case c{29, 37, K};
           c.tb = true;
           c.act = act;

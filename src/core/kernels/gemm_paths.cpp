@@ -22,14 +22,16 @@ int64_t env_int(const char* name, int64_t fallback) {
 //    of a block, which stream from L2), at most 512; an MC x KC A block fills 9/16 of L2. On a 32 KiB L1 / 512 KiB
 //    L2 core this gives the 384 / 192 the AVX2 path was tuned with.
 //  * The AVX-512 path computes twice as fast per cycle, so re-reading C between K passes costs more than keeping
-//    the B micro-panel in L1 saves: its KC x 32 B micro-panel takes 1/12 of L2 (streamed from L2 by the hardware
-//    prefetcher) and its A block 1/4 of L2. On a 1 MiB L2 core: KC = 672, MC = 96 (measured best of 160-1280 x
-//    96-240 on AMD EPYC Zen 5, one thread, U-Net shapes).
+//    the B micro-panel in L1 saves: its KC x 32 B micro-panel takes 1/6 of L2 (streamed from L2 by the hardware
+//    prefetcher) and its A block 1/4 of L2. On a 1 MiB L2 core: KC = 1344, MC = 48, so the U-Net's 1280-deep
+//    products take one K pass. bench gemm, AMD EPYC Zen 5 class, 2 threads, against KC = 672 / MC = 96 (the best of
+//    an earlier one-thread scan, before the C tile was prefetched and read ahead of its stores): 1024x1280x1280 84 -> 90% of peak,
+//    16384x320x1280 87 -> 92%, 4096x640x2560 85 -> 89%, 1024x10240x1280 81 -> 88%, 640-deep shapes even.
 GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
   const CpuInfo& ci = cpu_info();
   const int64_t l1 = ci.l1d_bytes(), l2 = ci.l2_bytes();
   const int64_t panel_bytes = p.nr * 4;  // of one k step of a B micro-panel
-  int64_t kc = kc_from_l2 ? std::clamp<int64_t>(l2 / 12 / panel_bytes / 32 * 32, 128, 1024)
+  int64_t kc = kc_from_l2 ? std::clamp<int64_t>(l2 / 6 / panel_bytes / 32 * 32, 128, 2048)
                           : std::clamp<int64_t>(l1 * 3 / 4 / panel_bytes / 16 * 16, 128, 512);
   kc = std::clamp<int64_t>(env_int("EGOPD_GEMM_KC", kc), 16, 4096);
   const int64_t a_bytes = kc_from_l2 ? l2 / 4 : l2 * 9 / 16;

@@ -24,11 +24,10 @@ inline __m512 act_ps(Act act, __m512 v) {
   }
 }
 
-// 16 columns of row i of the tile (mask m of the valid ones): C = act(v + C_old? + bias) + C_old?.
-inline void store16(float* c, const float* bias_col, __m512 v, int i, __mmask16 m, const TileEpilogue& ep) {
+// 16 columns of row i of the tile (mask m of the valid ones), old = C's previous values (zero when not read):
+// C = act(v + old? + bias) + old?.
+inline void store16(float* c, const float* bias_col, __m512 v, __m512 old, int i, __mmask16 m, const TileEpilogue& ep) {
   if (!m) return;
-  __m512 old = _mm512_setzero_ps();
-  if (ep.load_c || ep.add_after) old = _mm512_maskz_loadu_ps(m, c);
   if (ep.load_c) v = _mm512_add_ps(v, old);
   if (ep.bias_row) v = _mm512_add_ps(v, _mm512_set1_ps(ep.bias_row[i]));
   if (bias_col) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, bias_col));
@@ -37,13 +36,21 @@ inline void store16(float* c, const float* bias_col, __m512 v, int i, __mmask16 
   _mm512_mask_storeu_ps(c, m, v);
 }
 
-// The tile's MR x NR sum (row-major) into C, mr x nr of it.
+// The tile's MR x NR sum (row-major) into C, mr x nr of it. Every row of C is read before any is written: with a
+// row stride that is a multiple of 4 KiB, a load of row i + 1 issued behind the store to row i looks to the CPU
+// like a read of that store and waits for it to complete (a cache miss for a C block not yet written back).
 inline void store_tile(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
   const __mmask16 m0 = lanes(nr), m1 = lanes(nr - 16);
   const float* bias_col1 = ep.bias_col ? ep.bias_col + 16 : nullptr;
+  __m512 old[2 * MR];
+  const bool read = ep.load_c || ep.add_after;
   for (int i = 0; i < mr; ++i) {
-    store16(c + i * ldc, ep.bias_col, _mm512_load_ps(sum + i * NR), i, m0, ep);
-    store16(c + i * ldc + 16, bias_col1, _mm512_load_ps(sum + i * NR + 16), i, m1, ep);
+    old[2 * i] = read ? _mm512_maskz_loadu_ps(m0, c + i * ldc) : _mm512_setzero_ps();
+    old[2 * i + 1] = read ? _mm512_maskz_loadu_ps(m1, c + i * ldc + 16) : _mm512_setzero_ps();
+  }
+  for (int i = 0; i < mr; ++i) {
+    store16(c + i * ldc, ep.bias_col, _mm512_load_ps(sum + i * NR), old[2 * i], i, m0, ep);
+    store16(c + i * ldc + 16, bias_col1, _mm512_load_ps(sum + i * NR + 16), old[2 * i + 1], i, m1, ep);
   }
 }
 
