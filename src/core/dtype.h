@@ -51,13 +51,16 @@ inline float bf16_to_float(uint16_t b) {
 }
 
 // binary32 -> bfloat16, round to nearest even (NaN stays NaN).
+// A select rather than a branch, so that loops over it vectorise.
 inline uint16_t float_to_bf16(float f) {
   uint32_t bits;
   std::memcpy(&bits, &f, 4);
-  if ((bits & 0x7fffffffu) > 0x7f800000u) return uint16_t((bits >> 16) | 0x40);
-  bits += 0x7fffu + ((bits >> 16) & 1u);
-  return uint16_t(bits >> 16);
+  const uint32_t nan = (bits >> 16) | 0x40u, rounded = (bits + 0x7fffu + ((bits >> 16) & 1u)) >> 16;
+  return uint16_t((bits & 0x7fffffffu) > 0x7f800000u ? nan : rounded);
 }
+
+// f rounded to the nearest bfloat16 (ties to even), as a float32.
+inline float rounded_to_bf16(float f) { return bf16_to_float(float_to_bf16(f)); }
 
 // Convert n elements of a float-typed buffer (F32/F16/BF16) to float32.
 void convert_to_f32(DType t, const void* src, float* dst, size_t n);

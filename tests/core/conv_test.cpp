@@ -25,6 +25,7 @@ namespace {
 
 using test::act_ref;
 using test::kU;
+using test::round_bf16;
 using test::random_vec;
 using test::StoredWeight;
 
@@ -75,8 +76,6 @@ std::vector<double> row_max(const std::vector<double>& w, int64_t rows, int64_t 
 }
 
 Precision precision_of(bool bf16, bool int8) { return int8 ? Precision::Int8 : bf16 ? Precision::Bf16 : Precision::Fp32; }
-
-double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
 
 int run_conv(const ConvCase& c, uint32_t seed) {
   std::mt19937 rng(seed);

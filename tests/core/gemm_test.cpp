@@ -27,6 +27,7 @@ namespace {
 
 using test::act_ref;
 using test::kU;
+using test::round_bf16;
 
 // A logical [rows, cols] matrix stored in some dtype, possibly transposed, with a padded leading dimension.
 struct StoredMatrix {
@@ -86,8 +87,6 @@ struct Case {
   bool bf16 = false;  // Precision::Bf16: the reference multiplies the operands rounded to bfloat16
   bool int8 = false;  // Precision::Int8: the reference multiplies the operands quantised per K block (Int8Reference)
 };
-
-double round_bf16(double v) { return bf16_to_float(float_to_bf16(float(v))); }
 
 std::string describe(const Case& c) {
   return std::to_string(c.M) + "x" + std::to_string(c.N) + "x" + std::to_string(c.K) + " A " + dtype_name(c.adt) +

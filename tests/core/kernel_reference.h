@@ -14,6 +14,9 @@ namespace egopd::test {
 
 constexpr double kU = 1.0 / 16777216.0;  // 2^-24: float32 unit roundoff
 
+// v (a float32 value) rounded to bfloat16: what Precision::Bf16 multiplies.
+inline double round_bf16(double v) { return rounded_to_bf16(float(v)); }
+
 inline double act_ref(Act act, double x) {
   switch (act) {
     case Act::None: return x;

@@ -38,6 +38,7 @@ namespace {
 
 using test::act_ref;
 using test::kU;
+using test::round_bf16;
 using test::random_vec;
 using test::StoredWeight;
 
@@ -84,11 +85,13 @@ struct WinoCase {
   bool bias = true;
   Act act = Act::None;
   bool accumulate = false;
+  bool bf16 = false;  // Precision::Bf16: the reference convolves the input and weights rounded to bfloat16
 };
 
 std::string describe(const WinoCase& c, WinogradTile t) {
   return std::string(winograd_tile_name(t)) + " n" + std::to_string(c.n) + " " + std::to_string(c.cin) + "->" +
-         std::to_string(c.cout) + " " + std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt);
+         std::to_string(c.cout) + " " + std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt) +
+         (c.bf16 ? " bf16" : "");
 }
 
 // The output channels checked: all of a small layer, else a spread over register tiles and blocks.
@@ -110,6 +113,7 @@ struct Reference {
   std::mt19937 rng;
   StoredWeight wt;
   std::vector<float> x, bias, y0;
+  std::vector<double> xv, wv;  // the input and weight values convolved: x and wt.value, or those rounded (bf16)
   std::vector<int64_t> chans;
   std::vector<double> exact;  // [f][ci][h][w] over checked channels ci
   Reference(const WinoCase& c_, uint32_t seed)
@@ -117,6 +121,8 @@ struct Reference {
     x = random_vec(size_t(c.n * c.cin * c.h * c.w), rng);
     bias = random_vec(size_t(c.cout), rng);
     y0 = random_vec(size_t(c.n * c.cout * c.h * c.w), rng);
+    for (float v : x) xv.push_back(c.bf16 ? round_bf16(v) : v);
+    for (double v : wt.value) wv.push_back(c.bf16 ? round_bf16(v) : v);
     chans = checked_channels(c.cout);
     exact.assign(size_t(c.n) * chans.size() * size_t(c.h * c.w), 0.0);
     for (int64_t f = 0; f < c.n; ++f)
@@ -129,8 +135,8 @@ struct Reference {
                 for (int64_t kx = 0; kx < 3; ++kx) {
                   const int64_t iy = oy + ky - 1, ix = ox + kx - 1;
                   if (iy < 0 || iy >= c.h || ix < 0 || ix >= c.w) continue;
-                  s += wt.value[size_t(((chans[ci] * c.cin + i) * 3 + ky) * 3 + kx)] *
-                       x[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)];
+                  s += wv[size_t(((chans[ci] * c.cin + i) * 3 + ky) * 3 + kx)] *
+                       xv[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)];
                 }
             exact[(size_t(f) * chans.size() + ci) * size_t(c.h * c.w) + size_t(oy * c.w + ox)] = s;
           }
@@ -143,7 +149,7 @@ struct Reference {
     std::vector<double> gabs(chans.size() * size_t(c.cin * a2)), dabs(size_t(c.cin * a2)), W(exact.size());
     for (size_t ci = 0; ci < chans.size(); ++ci)
       for (int64_t i = 0; i < c.cin; ++i)
-        abs_sandwich(mt.g, a, 3, &wt.value[size_t((chans[ci] * c.cin + i) * 9)],
+        abs_sandwich(mt.g, a, 3, &wv[size_t((chans[ci] * c.cin + i) * 9)],
                      &gabs[(ci * size_t(c.cin) + size_t(i)) * size_t(a2)]);
     std::vector<double> patch(static_cast<size_t>(a2)), s(static_cast<size_t>(a2));
     for (int64_t f = 0; f < c.n; ++f)
@@ -154,7 +160,7 @@ struct Reference {
               for (int q = 0; q < a; ++q) {
                 const int64_t iy = ty * m - 1 + r, ix = tx * m - 1 + q;
                 const bool in = iy >= 0 && iy < c.h && ix >= 0 && ix < c.w;
-                patch[size_t(r * a + q)] = in ? x[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)] : 0.0;
+                patch[size_t(r * a + q)] = in ? xv[size_t(((f * c.cin + i) * c.h + iy) * c.w + ix)] : 0.0;
               }
             abs_sandwich(mt.bt, a, a, patch.data(), &dabs[size_t(i * a2)]);
           }
@@ -219,8 +225,10 @@ int check_against(const Reference& R, WinogradTile t, Run run, double* worst_rat
 int run_wino(const WinoCase& c, WinogradTile t, uint32_t seed) {
   const Reference R(c, seed);
   return check_against(R, t, [&](std::vector<float>& y) {
+    set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
     conv2d_winograd(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), c.bias ? R.bias.data() : nullptr, c.cin,
                     c.cout, y.data(), c.act, c.accumulate, t);
+    set_precision(Precision::Fp32);
   });
 }
 
@@ -337,6 +345,36 @@ TEST_P(WinogradTest, WeightDtypesAndEpilogues) {
           EXPECT_EQ(run_wino({2, 19, 21, 9, 7, dt, true, act, acc}, t, seed++), 0);
           EXPECT_EQ(run_wino({1, 6, 5, 4, 5, dt, false, act, acc}, t, seed++), 0);
         }
+}
+
+// Precision::Bf16: the input values and the weights are rounded to bfloat16, the transforms and products stay
+// float32, so the result is the float32-Winograd convolution of the rounded operands (the reference convolves those
+// exactly, under the float32 bound: without the rounding the error is ~2^-9 relative, far outside it). Every weight
+// dtype, tails of panels and channels, epilogues; and conv2d's dispatch under bf16 (auto and forced Winograd).
+TEST_P(WinogradTest, Bf16RoundsTheInputsThenTransformsInFloat32) {
+  uint32_t seed = 90;
+  for (WinogradTile t : kTiles)
+    for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8}) {
+      EXPECT_EQ(run_wino({2, 19, 21, 9, 7, dt, true, Act::None, false, true}, t, seed++), 0);
+      EXPECT_EQ(run_wino({1, 40, 30, 12, 70, dt, true, Act::SiLU, true, true}, t, seed++), 0);
+    }
+  const WinoCase c{16, 24, 20, 11, 13, DType::F16, true, Act::None, false, true};
+  const Reference R(c, 99);
+  const Conv2dGeom g{c.cin, c.cout, 3, 3, 1, 1, 1, 1};
+  for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
+    set_conv_algo(algo);
+    set_precision(Precision::Bf16);
+    const WinogradTile t = winograd_tile_for(c.h, c.w);
+    EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), std::string("winograd ") + winograd_tile_name(t));
+    EXPECT_EQ(check_against(R, t, [&](std::vector<float>& y) {
+                conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
+              }),
+              0)
+        << conv_algo_name(algo);
+    set_precision(Precision::Int8);  // int8 quantises inside the direct convolution
+    EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), "direct");
+    set_precision(Precision::Fp32);
+  }
 }
 
 // conv2d takes Winograd when told to (and for 3x3 stride-1 pad-1 only); Auto takes it on large layers.

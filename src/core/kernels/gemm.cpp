@@ -57,7 +57,7 @@ const char* int8_kernel() { return gemm_detail::gemm_path().i8_kernel; }
 namespace gemm_detail {
 
 void round_to_bf16(float* p, int64_t n) {
-  for (int64_t i = 0; i < n; ++i) p[i] = bf16_to_float(float_to_bf16(p[i]));
+  for (int64_t i = 0; i < n; ++i) p[i] = rounded_to_bf16(p[i]);
 }
 
 namespace {

@@ -175,6 +175,11 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
     throw Error("conv2d (winograd): transform lanes do not match the GEMM panels");
   const int64_t tiles_x = ceil_div(w, m), tpf = ceil_div(h, m) * tiles_x, ntiles = n * tpf;
   const int64_t K = std::max<int64_t>(cin, 1);
+  // Precision::Bf16 rounds the convolution's inputs, the input values and the weights, to bfloat16, as the direct
+  // convolution does; the transforms and the products of the transformed tiles stay float32.
+  const bool bf16 = precision() == Precision::Bf16;
+  const wino_detail::InputPanelFn input_panel = bf16 ? kern.input_bf16[ti] : kern.input[ti];
+  const wino_detail::FilterFn filter_rows = bf16 ? kern.filter_bf16[ti] : kern.filter[ti];
 
   const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
   const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
@@ -211,7 +216,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
         }
         path.pack_a(weight.element((o * cin + c0) * 9), weight.dtype, cin * 9, false,
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
-        for (int c = 0; c < len; ++c) kern.filter[ti](g + c * 9 * MR, dst + c * MR, u_xi);
+        for (int c = 0; c < len; ++c) filter_rows(g + c * 9 * MR, dst + c * MR, u_xi);
       }
   };
 
@@ -230,7 +235,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
           for (int64_t xi = 0; xi < a2; ++xi) std::fill_n(V + xi * v_xi + p * K * L, L, 0.0f);
           continue;
         }
-        kern.input[ti](x, cin, pg, c0, c1, V + p * K * L, v_xi);
+        input_panel(x, cin, pg, c0, c1, V + p * K * L, v_xi);
       }
   };
 

@@ -2,7 +2,8 @@
 // Winograd convolutions F(m x m, 3x3), m = 2 or 4, for 3x3 stride-1 pad-1 convolutions on frame-major NCHW
 // activations: y = Aᵀ[(G g Gᵀ) ⊙ (Bᵀ d B)]A per output tile, with the (m+2)^2 tile positions as batched GEMMs on
 // the SGEMM engine's micro-kernels. Float32 arithmetic; weights in their stored dtype (F32/F16/BF16, or I8
-// dequantised with its per-output-channel scale inside the filter transform). conv2d() dispatches here according
+// dequantised with its per-output-channel scale inside the filter transform). Under Precision::Bf16 the input values
+// and weights are rounded to bfloat16 before their transforms. conv2d() dispatches here according
 // to conv_algo() (conv.h).
 #include <cstdint>
 

@@ -53,8 +53,10 @@ struct WinogradKernels {
   int lanes = 16;  // L, the NR of the path's GEMM
   int rows = 6;    // R, the MR of the path's GEMM
   InputPanelFn input[2] = {};
+  InputPanelFn input_bf16[2] = {};  // the same with the input values rounded to bfloat16 first (Precision::Bf16)
   OutputPanelFn output[2] = {};
   FilterFn filter[2] = {};
+  FilterFn filter_bf16[2] = {};  // the same with the taps rounded to bfloat16 first (Precision::Bf16)
 };
 const WinogradKernels& winograd_kernels(KernelPath p);
 

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cstdint>
 
+#include "core/dtype.h"
 #include "core/kernels/winograd_internal.h"
 
 namespace egopd::wino_detail {
@@ -76,14 +77,16 @@ struct Transform<4> {
   }
 };
 
-template <int M, int L>
+// RoundBf16 (Precision::Bf16): every input value is rounded to bfloat16 before the transform, as the direct
+// convolution rounds its input; the transform itself stays float32.
+template <int M, int L, bool RoundBf16>
 void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, int64_t c1, float* dst,
                  int64_t xi_stride) {
   constexpr int A = Transform<M>::A;
   const int64_t h = pg.h, w = pg.w, plane = h * w;
   alignas(64) float t[A][A][L];  // row transforms: t[r][l][j] = (Bᵀ d_r)_l of tile j, d_r its input row r
   alignas(64) float vt[A][A][L];
-  alignas(64) float ph[M][L + 1];  // a row de-interleaved: ph[q][i] = its column M*i + q, so tile i's column s is
+  alignas(64) float ph[M][L + 1] = {};  // a row de-interleaved: ph[q][i] = its column M*i + q, so tile i's column s is
                                    // ph[s % M][i + s / M] and the row transform reads whole vectors
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
@@ -120,6 +123,9 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
           for (int q = 0; q < M; ++q) ph[q][i] = at(ix0 + M * i + q);
         ph[0][nl] = at(ix0 + M * nl);
         ph[1][nl] = at(ix0 + M * nl + 1);
+        if constexpr (RoundBf16)  // all of ph, a fixed trip count that vectorises (the rest is zeros or stale)
+          for (int q = 0; q < M; ++q)
+            for (int i = 0; i < L + 1; ++i) ph[q][i] = rounded_to_bf16(ph[q][i]);
         for (int i = 0; i < nl; ++i) {
           float d[A], v[A];
           for (int q = 0; q < A; ++q) d[q] = ph[q % M][i + q / M];
@@ -181,14 +187,16 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
   }
 }
 
-template <int M, int R>
+// RoundBf16 (Precision::Bf16): the taps are rounded to bfloat16 first, as the direct convolution rounds its weights.
+template <int M, int R, bool RoundBf16>
 void filter_rows(const float* g, float* u, int64_t xi_stride) {
   constexpr int A = Transform<M>::A;
   alignas(64) float ut[A * A][R];
+  const auto tap = [&](int t, int j) { return RoundBf16 ? rounded_to_bf16(g[t * R + j]) : g[t * R + j]; };
   for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
-      const float row[3] = {g[(p * 3) * R + j], g[(p * 3 + 1) * R + j], g[(p * 3 + 2) * R + j]};
+      const float row[3] = {tap(p * 3, j), tap(p * 3 + 1, j), tap(p * 3 + 2, j)};
       Transform<M>::g(row, t[p]);
     }
     for (int l = 0; l < A; ++l) {
@@ -206,12 +214,16 @@ WinogradKernels make_winograd_kernels() {
   WinogradKernels k;
   k.lanes = L;
   k.rows = R;
-  k.input[0] = input_panel<2, L>;
-  k.input[1] = input_panel<4, L>;
+  k.input[0] = input_panel<2, L, false>;
+  k.input[1] = input_panel<4, L, false>;
+  k.input_bf16[0] = input_panel<2, L, true>;
+  k.input_bf16[1] = input_panel<4, L, true>;
   k.output[0] = output_panel<2, L>;
   k.output[1] = output_panel<4, L>;
-  k.filter[0] = filter_rows<2, R>;
-  k.filter[1] = filter_rows<4, R>;
+  k.filter[0] = filter_rows<2, R, false>;
+  k.filter[1] = filter_rows<4, R, false>;
+  k.filter_bf16[0] = filter_rows<2, R, true>;
+  k.filter_bf16[1] = filter_rows<4, R, true>;
   return k;
 }
 
