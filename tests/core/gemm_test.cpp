@@ -263,11 +263,11 @@ TEST_P(GemmTest, OperandDtypes) {
 
 TEST_P(GemmTest, Epilogues) {
   uint32_t seed = 300;
+  const int64_t two_passes = gemm_detail::gemm_path().kc + 5;  // a K of two passes (19: one)
   for (Act act : {Act::None, Act::SiLU, Act::GELU, Act::QuickGELU})
     for (int bias : {0, 1, 2})
       for (bool acc : {false, true})
-        for (int64_t K : {int64_t(19), gemm_detail::gemm_path().kc + 5}) {  // one K pass, and two (accumulate + act
-                                                                          // goes through a temporary)
+        for (int64_t K : {int64_t(19), two_passes}) {  // accumulate + act over two passes goes through a temporary
           Case c{29, 37, K};
           c.tb = true;
           c.act = act;

@@ -24,9 +24,10 @@ int64_t env_int(const char* name, int64_t fallback) {
 //  * The AVX-512 path computes twice as fast per cycle, so re-reading C between K passes costs more than keeping
 //    the B micro-panel in L1 saves: its KC x 32 B micro-panel takes 1/6 of L2 (streamed from L2 by the hardware
 //    prefetcher) and its A block 1/4 of L2. On a 1 MiB L2 core: KC = 1344, MC = 48, so the U-Net's 1280-deep
-//    products take one K pass. bench gemm, AMD EPYC Zen 5 class, 2 threads, against KC = 672 / MC = 96 (the best of
-//    an earlier one-thread scan, before the C tile was prefetched and read ahead of its stores): 1024x1280x1280 84 -> 90% of peak,
-//    16384x320x1280 87 -> 92%, 4096x640x2560 85 -> 89%, 1024x10240x1280 81 -> 88%, 640-deep shapes even.
+//    products take one K pass. bench gemm, AMD EPYC Zen 5 class, 2 threads, against KC = 672 / MC = 96 (the best
+//    of an earlier one-thread scan, before the C tile was prefetched and read ahead of its stores): 1024x1280x1280
+//    84 -> 90% of peak, 16384x320x1280 87 -> 92%, 4096x640x2560 85 -> 89%, 1024x10240x1280 81 -> 88%, 640-deep
+//    shapes even.
 GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
   const CpuInfo& ci = cpu_info();
   const int64_t l1 = ci.l1d_bytes(), l2 = ci.l2_bytes();

@@ -86,8 +86,9 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
   const int64_t h = pg.h, w = pg.w, plane = h * w;
   alignas(64) float t[A][A][L];  // row transforms: t[r][l][j] = (Bᵀ d_r)_l of tile j, d_r its input row r
   alignas(64) float vt[A][A][L];
-  alignas(64) float ph[M][L + 1] = {};  // a row de-interleaved: ph[q][i] = its column M*i + q, so tile i's column s is
-                                   // ph[s % M][i + s / M] and the row transform reads whole vectors
+  // A row de-interleaved: ph[q][i] = its column M*i + q, so tile i's column s is ph[s % M][i + s / M] and the row
+  // transform reads whole vectors (zeroed: RoundBf16 rounds all of it).
+  alignas(64) float ph[M][L + 1] = {};
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
     for (int r = 0; r < A; ++r)
@@ -123,7 +124,7 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
           for (int q = 0; q < M; ++q) ph[q][i] = at(ix0 + M * i + q);
         ph[0][nl] = at(ix0 + M * nl);
         ph[1][nl] = at(ix0 + M * nl + 1);
-        if constexpr (RoundBf16)  // all of ph, a fixed trip count that vectorises (the rest is zeros or stale)
+        if constexpr (RoundBf16)  // all of ph: a fixed trip count, which vectorises
           for (int q = 0; q < M; ++q)
             for (int i = 0; i < L + 1; ++i) ph[q][i] = rounded_to_bf16(ph[q][i]);
         for (int i = 0; i < nl; ++i) {
