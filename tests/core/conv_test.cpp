@@ -75,8 +75,6 @@ std::vector<double> row_max(const std::vector<double>& w, int64_t rows, int64_t 
   return m;
 }
 
-Precision precision_of(bool bf16, bool int8) { return int8 ? Precision::Int8 : bf16 ? Precision::Bf16 : Precision::Fp32; }
-
 int run_conv(const ConvCase& c, uint32_t seed) {
   std::mt19937 rng(seed);
   const Conv2dGeom g{c.cin, c.cout, c.k, c.k, c.stride, c.stride, c.pad, c.pad};
@@ -86,14 +84,15 @@ int run_conv(const ConvCase& c, uint32_t seed) {
   const std::vector<float> bias = random_vec(size_t(c.cout), rng);
   std::vector<float> y = random_vec(size_t(c.n * c.cout * oh * ow), rng);
   const std::vector<float> y0 = y;
-  set_precision(precision_of(c.bf16, c.int8));
-  const auto own = c.own_3x3 ? gemm_detail::gemm_path().conv3x3_window : nullptr;
-  if (own)  // conv2d takes it from 4096 pixels per call; these shapes are smaller
-    EXPECT_TRUE(own(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, c.cin, c.cout, y.data(),
-                    c.act, c.accumulate));
-  else
-    conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
-  set_precision(Precision::Fp32);
+  {
+    const test::PrecisionGuard precision(test::precision_of(c.bf16, c.int8));
+    const auto own = c.own_3x3 ? gemm_detail::gemm_path().conv3x3_window : nullptr;
+    if (own)  // conv2d takes it from 4096 pixels per call; these shapes are smaller
+      EXPECT_TRUE(own(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, c.cin, c.cout, y.data(),
+                      c.act, c.accumulate));
+    else
+      conv2d(x.data(), c.n, c.h, c.w, wt.operand(K), c.bias ? bias.data() : nullptr, g, y.data(), c.act, c.accumulate);
+  }
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y.size()), tol(y.size());
@@ -169,13 +168,15 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
   const int64_t ys = c.y_stride > 0 ? c.y_stride : c.hw;
   std::vector<float> y = random_vec(size_t(c.b * c.f * c.cout * ys), rng);
   const std::vector<float> y0 = y;
-  set_precision(precision_of(c.bf16, c.int8));
-  const std::string algo = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw);
+  std::string algo;
+  {
+    const test::PrecisionGuard precision(test::precision_of(c.bf16, c.int8));
+    algo = conv_temporal3_algorithm(c.f, c.cin, c.cout, c.hw);
+    conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
+                   c.accumulate, c.y_stride);
+  }
   const int tile = algo == "winograd F(2,3)" ? 2 : algo == "winograd F(4,3)" ? 4 : 0;
   if (!tile && algo != "direct") ADD_FAILURE() << "unknown temporal algorithm " << algo;
-  conv_temporal3(x.data(), c.b, c.f, c.cin, c.hw, wt.operand(c.cin * 3), bias.data(), c.cout, y.data(), c.act,
-                 c.accumulate, c.y_stride);
-  set_precision(Precision::Fp32);
   const auto w_at = [&](size_t i) { return c.bf16 ? round_bf16(wt.value[i]) : wt.value[i]; };
   const auto x_at = [&](size_t i) { return c.bf16 ? round_bf16(x[i]) : double(x[i]); };
   std::vector<double> ref(y0.begin(), y0.end()), tol(y.size(), 0.0);  // the gaps between rows: exactly y0
@@ -407,9 +408,10 @@ TEST_P(ConvTest, Int8Compute) {
   const Conv2dGeom g{16, 8, 3, 3, 1, 1, 1, 1};
   std::vector<float> y32(size_t(2 * 8 * 8 * 8)), y8(y32.size());
   conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y32.data());
-  set_precision(Precision::Int8);
-  conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y8.data());
-  set_precision(Precision::Fp32);
+  {
+    const test::PrecisionGuard int8(Precision::Int8);
+    conv2d(x.data(), 2, 8, 8, f32_operand(w.data(), 16 * 9), nullptr, g, y8.data());
+  }
   EXPECT_NE(y8, y32);
 }
 

@@ -160,9 +160,10 @@ int run_case(const Case& c, uint32_t seed) {
   ep.bias_per_row = c.bias == 2;
   ep.act = c.act;
   ep.accumulate = c.accumulate;
-  set_precision(c.int8 ? Precision::Int8 : c.bf16 ? Precision::Bf16 : Precision::Fp32);
-  gemm(c.M, c.N, c.K, A.operand(), B.operand(), C.data(), ldc, ep);
-  set_precision(Precision::Fp32);
+  {
+    const test::PrecisionGuard precision(test::precision_of(c.bf16, c.int8));
+    gemm(c.M, c.N, c.K, A.operand(), B.operand(), C.data(), ldc, ep);
+  }
   std::optional<Int8Reference> q8;
   if (c.int8) q8.emplace(A, B, c.M, c.N, c.K);
   int bad = 0;
@@ -401,10 +402,9 @@ TEST(GemmInt8Test, ThreadsAndPathsAgreeBitForBit) {
       for (int threads : {1, 2}) {
         test::KernelPathGuard guard(p);
         set_num_threads(threads);
-        set_precision(Precision::Int8);
+        const test::PrecisionGuard int8(Precision::Int8);
         std::vector<float> c(size_t(200 * N));
         gemm(200, N, 700, A.operand(), B.operand(), c.data(), N);
-        set_precision(Precision::Fp32);
         if (first.empty()) first = c;
         EXPECT_EQ(c, first) << kernel_path_name(p) << ", " << threads << " threads, N = " << N;
       }

@@ -34,6 +34,16 @@ struct KernelPathGuard {
   ~KernelPathGuard() { set_kernel_path(before); }
 };
 
+// Computes in precision p while in scope (set_precision), then in the precision that was in use before.
+struct PrecisionGuard {
+  Precision before = precision();
+  explicit PrecisionGuard(Precision p) { set_precision(p); }
+  ~PrecisionGuard() { set_precision(before); }
+};
+inline Precision precision_of(bool bf16, bool int8) {
+  return int8 ? Precision::Int8 : bf16 ? Precision::Bf16 : Precision::Fp32;
+}
+
 // Every kernel path, for parameterised suites (paths the CPU lacks are skipped with a message).
 inline const KernelPath kAllKernelPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512,
                                             KernelPath::Neon};

@@ -225,10 +225,9 @@ int check_against(const Reference& R, WinogradTile t, Run run, double* worst_rat
 int run_wino(const WinoCase& c, WinogradTile t, uint32_t seed) {
   const Reference R(c, seed);
   return check_against(R, t, [&](std::vector<float>& y) {
-    set_precision(c.bf16 ? Precision::Bf16 : Precision::Fp32);
+    const test::PrecisionGuard precision(test::precision_of(c.bf16, false));
     conv2d_winograd(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), c.bias ? R.bias.data() : nullptr, c.cin,
                     c.cout, y.data(), c.act, c.accumulate, t);
-    set_precision(Precision::Fp32);
   });
 }
 
@@ -363,17 +362,18 @@ TEST_P(WinogradTest, Bf16RoundsTheInputsThenTransformsInFloat32) {
   const Conv2dGeom g{c.cin, c.cout, 3, 3, 1, 1, 1, 1};
   for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
     set_conv_algo(algo);
-    set_precision(Precision::Bf16);
-    const WinogradTile t = winograd_tile_for(c.h, c.w);
-    EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), std::string("winograd ") + winograd_tile_name(t));
-    EXPECT_EQ(check_against(R, t, [&](std::vector<float>& y) {
-                conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
-              }),
-              0)
-        << conv_algo_name(algo);
-    set_precision(Precision::Int8);  // int8 quantises inside the direct convolution
+    {
+      const test::PrecisionGuard bf16(Precision::Bf16);
+      const WinogradTile t = winograd_tile_for(c.h, c.w);
+      EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), std::string("winograd ") + winograd_tile_name(t));
+      EXPECT_EQ(check_against(R, t, [&](std::vector<float>& y) {
+                  conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
+                }),
+                0)
+          << conv_algo_name(algo);
+    }
+    const test::PrecisionGuard int8(Precision::Int8);  // int8 quantises inside the direct convolution
     EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), "direct");
-    set_precision(Precision::Fp32);
   }
 }
 
