@@ -54,7 +54,7 @@ void print_bench_report(const BenchReport& r, bool json) {
   if (conv_algo() != ConvAlgo::Direct || precision() != Precision::Fp32)
     j["percent_of_peak_is"] = "direct-fp32-equivalent (--conv direct --precision fp32 for the share of the peak)";
   j["threads"] = r.threads;
-  j["cpu"] = cpu_info().model;
+  j["cpu"] = cpu_info().description();
   j["kernels"] = kernel_path_name(kernel_path());
   j["conv"] = conv_algo_name(conv_algo());
   j["kernel_features"] = kernel_path_features(kernel_path());

@@ -173,7 +173,7 @@ int run(int argc, char** argv) {
     const CpuInfo& ci = cpu_info();
     std::printf("egopd %s (kernels: %s, %s; conv: %s; cpu: %s)\n", EGOPD_VERSION, kernel_path_name(kernel_path()),
                 kernel_path_features(kernel_path()).c_str(), conv_algo_name(conv_algo()),
-                ci.model.empty() ? "unknown" : ci.model.c_str());
+                ci.description().c_str());
     return 0;
   }
   const std::string name = rest[0];

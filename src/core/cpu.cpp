@@ -83,6 +83,7 @@ CpuInfo detect() {
   }
   const Regs vendor = cpuid(0);
   const bool amd = vendor.b == 0x68747541u;  // "Auth"
+  ci.core = x86_core_name(l1.a, amd);
   if (amd && max_ext >= 0x8000001Du)
     read_caches(0x8000001Du, ci);
   else if (max_std >= 4)
@@ -212,6 +213,28 @@ int g_path = -1;  // -1: not chosen yet
 const CpuInfo& cpu_info() {
   static const CpuInfo ci = detect();
   return ci;
+}
+
+std::string x86_core_name(uint32_t signature, bool amd) {
+  // Display family and model: the extended fields count for base family 0xF (and the model's also for family 6).
+  const unsigned base_family = (signature >> 8) & 0xf, base_model = (signature >> 4) & 0xf;
+  const unsigned family = base_family == 0xf ? base_family + ((signature >> 20) & 0xff) : base_family;
+  const unsigned model =
+      base_family == 0xf || base_family == 6 ? (((signature >> 16) & 0xf) << 4) | base_model : base_model;
+  std::string name = "family " + std::to_string(family) + " model " + std::to_string(model);
+  // AMD's model ranges of families 17h-1Ah (its processor programming references); other vendors by number only.
+  const bool zen4 = (model >= 0x10 && model < 0x20) || (model >= 0x60 && model < 0x80) || model >= 0xa0;
+  const char* generation = !amd              ? nullptr
+                           : family == 0x17 ? (model < 0x30 ? "Zen / Zen+" : "Zen 2")
+                           : family == 0x19 ? (zen4 ? "Zen 4" : "Zen 3")
+                           : family == 0x1a ? "Zen 5"
+                                            : nullptr;
+  return generation ? name + ", " + generation : name;
+}
+
+std::string CpuInfo::description() const {
+  if (model.empty()) return core.empty() ? "unknown" : core;
+  return core.empty() ? model : model + " (" + core + ")";
 }
 
 const char* kernel_path_name(KernelPath p) {

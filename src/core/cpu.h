@@ -11,6 +11,10 @@ namespace egopd {
 
 struct CpuInfo {
   std::string model;  // brand string, e.g. "AMD EPYC 9R14 96-Core Processor"
+  // x86: CPUID family and model, and the core generation where known ("family 25 model 17, Zen 4"): virtual CPUs
+  // often report a bare "AMD EPYC" for several generations. Empty elsewhere.
+  std::string core;
+  std::string description() const;  // "<model> (<core>)", "unknown" when nothing is known
   bool avx2_fma_f16c = false;
   bool avx512 = false;       // F + BW + VL + DQ, with the OS saving the ZMM state
   bool avx512_bf16 = false;  // vdpbf16ps
@@ -25,6 +29,8 @@ struct CpuInfo {
   int64_t l2_bytes() const { return l2 > 0 ? l2 : int64_t(512) << 10; }
 };
 const CpuInfo& cpu_info();
+// CpuInfo::core of an x86 CPU from its CPUID leaf 1 signature (EAX) and vendor: "family 25 model 17, Zen 4".
+std::string x86_core_name(uint32_t signature, bool amd);
 
 enum class KernelPath : uint8_t { Portable, Avx2, Avx512, Neon };
 
