@@ -137,7 +137,7 @@ CpuInfo detect() {
   ci.neon_dotprod = hw & (1ul << 20);
   const std::string cpu0 = "/sys/devices/system/cpu/cpu0/";
   const std::string midr = read_line(cpu0 + "regs/identification/midr_el1");
-  if (!midr.empty()) ci.model = core_name(std::strtoul(midr.c_str(), nullptr, 16));
+  if (!midr.empty()) ci.core = core_name(std::strtoul(midr.c_str(), nullptr, 16));
   for (int i = 0; i < 8; ++i) {
     const std::string dir = cpu0 + "cache/index" + std::to_string(i) + "/";
     const std::string type = read_line(dir + "type"), level = read_line(dir + "level");
@@ -215,20 +215,29 @@ const CpuInfo& cpu_info() {
   return ci;
 }
 
+namespace {
+
+// AMD's model ranges of families 17h-1Ah (its processor programming references); nullptr for other families.
+const char* amd_generation(unsigned family, unsigned model) {
+  switch (family) {
+    case 0x17: return model < 0x30 ? "Zen / Zen+" : "Zen 2";
+    case 0x19:
+      return (model >= 0x10 && model < 0x20) || (model >= 0x60 && model < 0x80) || model >= 0xa0 ? "Zen 4" : "Zen 3";
+    case 0x1a: return "Zen 5";
+    default: return nullptr;
+  }
+}
+
+}  // namespace
+
 std::string x86_core_name(uint32_t signature, bool amd) {
   // Display family and model: the extended fields count for base family 0xF (and the model's also for family 6).
   const unsigned base_family = (signature >> 8) & 0xf, base_model = (signature >> 4) & 0xf;
   const unsigned family = base_family == 0xf ? base_family + ((signature >> 20) & 0xff) : base_family;
   const unsigned model =
       base_family == 0xf || base_family == 6 ? (((signature >> 16) & 0xf) << 4) | base_model : base_model;
-  std::string name = "family " + std::to_string(family) + " model " + std::to_string(model);
-  // AMD's model ranges of families 17h-1Ah (its processor programming references); other vendors by number only.
-  const bool zen4 = (model >= 0x10 && model < 0x20) || (model >= 0x60 && model < 0x80) || model >= 0xa0;
-  const char* generation = !amd              ? nullptr
-                           : family == 0x17 ? (model < 0x30 ? "Zen / Zen+" : "Zen 2")
-                           : family == 0x19 ? (zen4 ? "Zen 4" : "Zen 3")
-                           : family == 0x1a ? "Zen 5"
-                                            : nullptr;
+  const std::string name = "family " + std::to_string(family) + " model " + std::to_string(model);
+  const char* generation = amd ? amd_generation(family, model) : nullptr;  // other vendors by number only
   return generation ? name + ", " + generation : name;
 }
 

@@ -10,9 +10,10 @@
 namespace egopd {
 
 struct CpuInfo {
-  std::string model;  // brand string, e.g. "AMD EPYC 9R14 96-Core Processor"
-  // x86: CPUID family and model, and the core generation where known ("family 25 model 17, Zen 4"): virtual CPUs
-  // often report a bare "AMD EPYC" for several generations. Empty elsewhere.
+  std::string model;  // brand string, e.g. "AMD EPYC 9R14 96-Core Processor" (x86, macOS)
+  // The core: on x86 the CPUID family and model and, for AMD, the generation ("family 25 model 17, Zen 4"; virtual
+  // CPUs often report a bare "AMD EPYC" for several generations); on AArch64 Linux the core named by MIDR_EL1
+  // ("Arm Neoverse N1") when known.
   std::string core;
   std::string description() const;  // "<model> (<core>)", "unknown" when nothing is known
   bool avx2_fma_f16c = false;
