@@ -9,6 +9,7 @@
 #include "core/kernels/conv.h"
 #include "core/kernels/fma_peak.h"
 #include "core/kernels/gemm.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/memory.h"
 #include "core/timing.h"
 #include "egopd/version.h"
@@ -36,6 +37,27 @@ CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<voi
     wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   return {median(wall), median(cpu)};
+}
+
+void add_kernel_profile(BenchReport& r, int64_t runs) {
+  const double per_run = 1.0 / double(std::max<int64_t>(runs, 1));
+  nlohmann::ordered_json rows = nlohmann::ordered_json::array();
+  double total = 0;
+  for (const KernelProfileEntry& e : kernel_profile()) {
+    nlohmann::ordered_json row;
+    row["kernel"] = e.kernel;
+    row["calls"] = double(e.calls) * per_run;
+    row["seconds"] = e.seconds * per_run;
+    row["gflop"] = e.flop * per_run * 1e-9;
+    row["gflops"] = e.seconds > 0 ? e.flop / e.seconds * 1e-9 : 0.0;
+    row["share_of_run"] = r.seconds > 0 ? e.seconds * per_run / r.seconds : 0.0;
+    rows.push_back(row);
+    total += e.seconds * per_run;
+  }
+  set_kernel_profiling(false);
+  clear_kernel_profile();
+  r.extra["kernel_profile_seconds"] = total;  // the rest of the run: norms, activations, re-layouts, the sampler
+  r.extra["kernel_profile"] = rows;
 }
 
 void print_bench_report(const BenchReport& r, bool json) {

@@ -13,6 +13,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/synthetic_weights.h"
 #include "core/threading.h"
 #include "core/timing.h"
@@ -37,6 +38,7 @@ int bench_unet(const Args& a) {
   const int64_t warmup = a.get_int("warmup", 1);
   const bool pifr = a.flag("pifr");
   const bool json = a.flag("json");
+  const bool profile_kernels = a.flag("kernel-profile");
   const std::string weights_dir = a.get("weights", "");
   a.finish();
   if (config != "svd-xt") throw Error("bench unet: --config must be svd-xt (got '" + config + "')");
@@ -91,6 +93,7 @@ int bench_unet(const Args& a) {
                  evaluate().first);
   StageTimes stages;
   unet.set_profile(&stages);
+  set_kernel_profiling(profile_kernels);
   std::vector<double> secs, cpu;
   for (int64_t e = 0; e < evals; ++e) {
     const auto [wall, cpu_s] = evaluate();
@@ -120,6 +123,7 @@ int bench_unet(const Args& a) {
   nlohmann::ordered_json br = nlohmann::ordered_json::object();
   for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
   r.extra["breakdown_seconds"] = br;
+  if (profile_kernels) add_kernel_profile(r, evals);
   print_bench_report(r, json);
   return 0;
 }

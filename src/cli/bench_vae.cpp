@@ -10,6 +10,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/memory.h"
 #include "core/threading.h"
 #include "vae/temporal_vae.h"
@@ -24,6 +25,7 @@ struct VaeBenchOptions {
   DType dtype = DType::F16;
   int64_t frames = 16, size = 256, chunk = 0, repeat = 1;
   bool json = false;
+  bool profile_kernels = false;
 };
 
 VaeBenchOptions read_options(const Args& a, const std::string& target, bool decode) {
@@ -35,6 +37,7 @@ VaeBenchOptions read_options(const Args& a, const std::string& target, bool deco
   if (decode) o.chunk = a.get_int("decode-chunk", 0);
   o.repeat = a.get_int("repeat", 1);
   o.json = a.flag("json");
+  o.profile_kernels = a.flag("kernel-profile");
   a.finish();
   if (config != "svd-xt") throw Error("bench " + target + ": --config must be svd-xt (got '" + config + "')");
   if (o.frames < 1 || o.frames > 1024) throw Error("bench " + target + ": --frames must be between 1 and 1024");
@@ -92,6 +95,7 @@ int run_vae_bench(const Args& a, bool decode) {
   r.extra["weights_bytes"] = vae.weight_bytes();
   r.extra["rss_before_run_bytes"] = current_rss_bytes();
   Tensor y;
+  set_kernel_profiling(o.profile_kernels);
   if (decode) {
     const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
     const Tensor latents = pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f);
@@ -106,6 +110,7 @@ int run_vae_bench(const Args& a, bool decode) {
     r.gflop = vae_encode_flop(cfg, o.frames, o.size, o.size) * 1e-9;
   }
   describe_output(y, r);
+  if (o.profile_kernels) add_kernel_profile(r, o.repeat);
   r.extra["peak_rss_above_weights_bytes"] = int64_t(peak_rss_bytes()) - int64_t(vae.weight_bytes());
   print_bench_report(r, o.json);
   return 0;

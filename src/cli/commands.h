@@ -40,6 +40,9 @@ struct BenchReport {
   nlohmann::ordered_json extra = nlohmann::ordered_json::object();
 };
 void print_bench_report(const BenchReport& r, bool json);
+// --kernel-profile: r.extra["kernel_profile"] from the kernel calls recorded so far (core/kernels/kernel_profile.h),
+// per run of `runs`, slowest first, with their GFLOP/s and share of the run; then profiling stops.
+void add_kernel_profile(BenchReport& r, int64_t runs);
 // Median wall and process-CPU seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first
 // touches of mapped weights and scratch buffers).
 struct CallTimes {

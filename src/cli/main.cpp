@@ -34,12 +34,15 @@ const BenchTarget kBenchTargets[] = {
      "      [--save-result FILE] [--compare-to FILE]   save latents, decoded clip and taxels / report their rel_l2\n"
      "      and max_abs error against a saved run (e.g. --precision bf16 against an fp32 run)"},
     {"unet", bench_unet,
-     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr] [--weights DIR]"},
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr] [--weights DIR]\n"
+     "      [--kernel-profile]   also the time and GFLOP/s of each kernel shape (GEMM, convolution, attention)"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
-    {"vae_encode", bench_vae_encode, "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--repeat 1]"},
+    {"vae_encode", bench_vae_encode,
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--repeat 1] [--kernel-profile]"},
     {"vae_decode", bench_vae_decode,
-     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--decode-chunk N] [--repeat 1]"},
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--decode-chunk N] [--repeat 1]\n"
+     "      [--kernel-profile]"},
     {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
     {"conv2d", bench_conv2d,
      "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]\n"

@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/kernels/winograd.h"
 
 namespace egopd {
@@ -162,6 +163,11 @@ void pack_im2col_shift_portable(const float* xf, const ShiftGeom& s, int64_t k0,
 
 void conv2d(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
             const Conv2dGeom& g, float* y, Act act, bool accumulate) {
+  const KernelTimer timer(2.0 * double(n * g.out_h(h) * g.out_w(w)) * double(g.cin * g.cout * g.kh * g.kw), [&] {
+    return "conv2d " + std::to_string(g.kh) + "x" + std::to_string(g.kw) + " s" + std::to_string(g.stride_h) + " " +
+           std::to_string(g.cin) + "->" + std::to_string(g.cout) + " " + std::to_string(n) + "x" + std::to_string(h) +
+           "x" + std::to_string(w) + " " + conv2d_algorithm(g, n, h, w);
+  });
   conv_detail::check_weight(weight, "conv2d");
   const int64_t oh = g.out_h(h), ow = g.out_w(w);
   if (n <= 0 || oh <= 0 || ow <= 0 || g.cout <= 0) return;

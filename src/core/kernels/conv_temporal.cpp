@@ -20,6 +20,7 @@
 #include "core/kernels/conv.h"
 #include "core/kernels/conv_internal.h"
 #include "core/kernels/gemm_internal.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/kernels/winograd_internal.h"
 #include "core/memory.h"
 #include "core/threading.h"
@@ -281,6 +282,11 @@ std::string conv_temporal3_algorithm(int64_t f, int64_t cin, int64_t cout, int64
 
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                     const float* bias, int64_t cout, float* y, Act act, bool accumulate, int64_t y_stride) {
+  // A frame's taps beyond the clip are zeros and skipped: 3 f - 2 taps per output pixel (one for a 1-frame clip).
+  const KernelTimer timer(2.0 * double(b * std::max<int64_t>(3 * f - 2, 0) * hw) * double(cin * cout), [&] {
+    return "conv_temporal3 " + std::to_string(cin) + "->" + std::to_string(cout) + " " + std::to_string(b) + "x" +
+           std::to_string(f) + "x" + std::to_string(hw) + " " + conv_temporal3_algorithm(f, cin, cout, hw);
+  });
   conv_detail::check_weight(weight, "conv_temporal3");
   if (b <= 0 || f <= 0 || hw <= 0 || cout <= 0) return;
   const int64_t ys = y_stride > 0 ? y_stride : hw;
