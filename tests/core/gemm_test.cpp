@@ -356,8 +356,10 @@ TEST_P(GemmTest, Bf16ComputeMultipliesRoundedOperands) {
           c.bf16 = true;
           ASSERT_EQ(run_case(c, seed++), 0);
         }
-  // Float32 A: K tails of 16, two K passes, several row blocks.
-  for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{5, 40, 2900}, {300, 64, 47}, {25, 33, 1345}}) {
+  // Float32 A: K tails of 16, two K passes, several row blocks; 20 x 700: the threads split N, each rounding all
+  // of A for its columns.
+  for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{5, 40, 2900}, {300, 64, 47}, {25, 33, 1345},
+                         {20, 700, 1500}}) {
     Case c{M, N, K};
     c.bf16 = true;
     c.bias = 1;
@@ -396,6 +398,16 @@ TEST_P(GemmTest, Int8ComputeMultipliesQuantisedOperands) {
           c.int8 = true;
           ASSERT_EQ(run_case(c, seed++), 0);
         }
+  // 20 x 700, 9 x 900, 13 x 650: the threads split N, each quantising all of A for its columns (1537: three
+  // groups in one pass; 1100: two passes).
+  for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{20, 700, 1537}, {9, 900, 1100}, {13, 650, 30}})
+    for (int t = 0; t < 2; ++t) {
+      Case c{M, N, K};
+      c.ta = t & 1;
+      c.int8 = true;
+      c.bias = 1;
+      ASSERT_EQ(run_case(c, seed++), 0);
+    }
   for (DType dt : {DType::F16, DType::BF16, DType::I8})
     for (auto [M, N, K] : {std::tuple<int64_t, int64_t, int64_t>{37, 50, 45}, {130, 70, 1537}}) {
       Case b{M, N, K, DType::F32, dt, false, true};
@@ -413,7 +425,7 @@ TEST_P(GemmTest, Int8ComputeMultipliesQuantisedOperands) {
 TEST(GemmInt8Test, ThreadsAndPathsAgreeBitForBit) {
   const int saved = num_threads();
   std::mt19937 rng(77);
-  for (int64_t N : {40, 300}) {
+  for (int64_t N : {40, 300, 1000}) {  // 40, 300: the threads split M; 1000: they split N
     StoredMatrix A(200, 700, false, DType::F32, true, rng), B(700, N, true, DType::F16, false, rng);
     std::vector<float> first;
     for (KernelPath p : supported_kernel_paths())
