@@ -32,24 +32,27 @@ void run_loop(benchmark::State& state, bool supported, const char* needs, double
   "cc", "memory", "xmm0", "xmm1", "xmm2", "xmm3", "xmm4", "xmm5", "xmm6", "xmm7", "xmm8", "xmm9", "xmm10", "xmm11", \
       "xmm12", "xmm13", "xmm14", "xmm15"
 
+// 256 steps of a 16-column ymm tile: `load` the two B vectors, then ROWS (the rows' instructions); A advances
+// a_step bytes per step.
+#define Y_LOOP(load, ROWS, a_step)                                                                                   \
+  int64_t k = 256;                                                                                             \
+  asm volatile("1:\n\t"                                                                                        \
+               load " (%[b]), %%ymm12\n\t" load " 32(%[b]), %%ymm13\n\t" ROWS "add $" #a_step ", %[a]\n\t"           \
+               "add $64, %[b]\n\t"                                                                             \
+               "dec %[k]\n\t"                                                                                  \
+               "jnz 1b"                                                                                        \
+               : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)                                                         \
+               :                                                                                               \
+               : EGOPD_CLOBBER_YMM);
+
 // AVX2 float32, 6 x 16 tile (avx2/gemm.cpp): per k, 2 B loads, 6 broadcasts, 12 FMAs of 8 lanes.
 #define FMA_ROW(i, c0, c1)                                  \
   "vbroadcastss " #i "*4(%[a]), %%ymm14\n\t"                \
   "vfmadd231ps %%ymm12, %%ymm14, %%ymm" #c0 "\n\t"          \
   "vfmadd231ps %%ymm13, %%ymm14, %%ymm" #c1 "\n\t"
 __attribute__((target("avx2,fma"))) void fma_6x16(const int32_t* a, const int32_t* b) {
-  int64_t k = 256;
-  asm volatile(
-      "1:\n\t"
-      "vmovups (%[b]), %%ymm12\n\t"
-      "vmovups 32(%[b]), %%ymm13\n\t" FMA_ROW(0, 0, 1) FMA_ROW(1, 2, 3) FMA_ROW(2, 4, 5) FMA_ROW(3, 6, 7)
-          FMA_ROW(4, 8, 9) FMA_ROW(5, 10, 11) "add $24, %[a]\n\t"
-      "add $64, %[b]\n\t"
-      "dec %[k]\n\t"
-      "jnz 1b"
-      : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)
-      :
-      : EGOPD_CLOBBER_YMM);
+  Y_LOOP("vmovups", FMA_ROW(0, 0, 1) FMA_ROW(1, 2, 3) FMA_ROW(2, 4, 5) FMA_ROW(3, 6, 7) FMA_ROW(4, 8, 9)
+                        FMA_ROW(5, 10, 11), 24)
 }
 
 // AVX2 int8, 6 x 16 tile (avx2/gemm.cpp): per pair of k, 2 B loads, 6 broadcasts, 12 vpmaddwd + 12 vpaddd.
@@ -60,18 +63,8 @@ __attribute__((target("avx2,fma"))) void fma_6x16(const int32_t* a, const int32_
   "vpmaddwd %%ymm13, %%ymm14, %%ymm15\n\t"                \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32_t* b) {
-  int64_t k = 256;
-  asm volatile(
-      "1:\n\t"
-      "vmovdqu (%[b]), %%ymm12\n\t"
-      "vmovdqu 32(%[b]), %%ymm13\n\t" MADD_ROW(0, 0, 1) MADD_ROW(1, 2, 3) MADD_ROW(2, 4, 5) MADD_ROW(3, 6, 7)
-          MADD_ROW(4, 8, 9) MADD_ROW(5, 10, 11) "add $24, %[a]\n\t"
-      "add $64, %[b]\n\t"
-      "dec %[k]\n\t"
-      "jnz 1b"
-      : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)
-      :
-      : EGOPD_CLOBBER_YMM);
+  Y_LOOP("vmovdqu", MADD_ROW(0, 0, 1) MADD_ROW(1, 2, 3) MADD_ROW(2, 4, 5) MADD_ROW(3, 6, 7) MADD_ROW(4, 8, 9)
+              MADD_ROW(5, 10, 11), 24)
 }
 
 // For comparison only (not exact for two int8 operands of -127..127, whose pair sums saturate int16): u8 x s8
@@ -85,18 +78,7 @@ __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32
   "vpmaddwd %%ymm15, %%ymm11, %%ymm15\n\t"               \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int32_t* b) {
-  int64_t k = 256;
-  asm volatile(
-      "1:\n\t"
-      "vmovdqu (%[b]), %%ymm12\n\t"
-      "vmovdqu 32(%[b]), %%ymm13\n\t" UBS_ROW(0, 0, 1) UBS_ROW(1, 2, 3) UBS_ROW(2, 4, 5) UBS_ROW(3, 6, 7)
-          UBS_ROW(4, 8, 9) "add $20, %[a]\n\t"
-      "add $64, %[b]\n\t"
-      "dec %[k]\n\t"
-      "jnz 1b"
-      : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)
-      :
-      : EGOPD_CLOBBER_YMM);
+  Y_LOOP("vmovdqu", UBS_ROW(0, 0, 1) UBS_ROW(1, 2, 3) UBS_ROW(2, 4, 5) UBS_ROW(3, 6, 7) UBS_ROW(4, 8, 9), 20)
 }
 
 #define EGOPD_CLOBBER_ZMM                                                                                         \
@@ -110,11 +92,11 @@ __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int
   "vpbroadcastd " #i "*4(%[a]), %%zmm26\n\t"                       \
   op " %%zmm24, %%zmm26, %%zmm" #c0 "\n\t"                         \
   op " %%zmm25, %%zmm26, %%zmm" #c1 "\n\t"
-#define Z_LOOP(op)                                                                                              \
+#define Z_LOOP(load, op)                                                                                              \
   int64_t k = 256;                                                                                              \
   asm volatile("1:\n\t"                                                                                         \
-               "vmovdqu32 (%[b]), %%zmm24\n\t"                                                                  \
-               "vmovdqu32 64(%[b]), %%zmm25\n\t" Z_ROW(op, 0, 0, 1) Z_ROW(op, 1, 2, 3) Z_ROW(op, 2, 4, 5)       \
+               load " (%[b]), %%zmm24\n\t"                                                                   \
+               load " 64(%[b]), %%zmm25\n\t" Z_ROW(op, 0, 0, 1) Z_ROW(op, 1, 2, 3) Z_ROW(op, 2, 4, 5)       \
                    Z_ROW(op, 3, 6, 7) Z_ROW(op, 4, 8, 9) Z_ROW(op, 5, 10, 11) Z_ROW(op, 6, 12, 13)              \
                        Z_ROW(op, 7, 14, 15) Z_ROW(op, 8, 16, 17) Z_ROW(op, 9, 18, 19) Z_ROW(op, 10, 20, 21)     \
                            Z_ROW(op, 11, 22, 23) "add $48, %[a]\n\t"                                            \
@@ -124,12 +106,14 @@ __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int
                : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)                                                          \
                :                                                                                                \
                : EGOPD_CLOBBER_ZMM);
-__attribute__((target("avx512f"))) void fma_12x32(const int32_t* a, const int32_t* b) { Z_LOOP("vfmadd231ps") }
+__attribute__((target("avx512f"))) void fma_12x32(const int32_t* a, const int32_t* b) {
+  Z_LOOP("vmovups", "vfmadd231ps")
+}
 __attribute__((target("avx512f,avx512vnni"))) void vpdpbusd_12x32(const int32_t* a, const int32_t* b) {
-  Z_LOOP("vpdpbusd")
+  Z_LOOP("vmovdqu32", "vpdpbusd")
 }
 __attribute__((target("avx512f,avx512bf16"))) void vdpbf16ps_12x32(const int32_t* a, const int32_t* b) {
-  Z_LOOP("vdpbf16ps")
+  Z_LOOP("vmovups", "vdpbf16ps")
 }
 
 const egopd::CpuInfo& cpu() { return egopd::cpu_info(); }
