@@ -120,7 +120,9 @@ const egopd::CpuInfo& cpu() { return egopd::cpu_info(); }
 
 void BM_avx2_fma_6x16(benchmark::State& s) { run_loop(s, cpu().avx2_fma_f16c, "needs AVX2+FMA", 96, fma_6x16); }
 void BM_avx2_vpmaddwd_6x16(benchmark::State& s) { run_loop(s, cpu().avx2_fma_f16c, "needs AVX2", 192, vpmaddwd_6x16); }
-void BM_avx2_vpmaddubsw_5x16(benchmark::State& s) { run_loop(s, cpu().avx2_fma_f16c, "needs AVX2", 320, vpmaddubsw_5x16); }
+void BM_avx2_vpmaddubsw_5x16(benchmark::State& s) {
+  run_loop(s, cpu().avx2_fma_f16c, "needs AVX2", 320, vpmaddubsw_5x16);
+}
 void BM_avx512_fma_12x32(benchmark::State& s) { run_loop(s, cpu().avx512, "needs AVX-512", 384, fma_12x32); }
 void BM_avx512_vpdpbusd_12x32(benchmark::State& s) {
   run_loop(s, cpu().avx512 && cpu().avx512_vnni, "needs AVX512-VNNI", 1536, vpdpbusd_12x32);

@@ -56,7 +56,7 @@ void add_kernel_profile(BenchReport& r, int64_t runs) {
   }
   set_kernel_profiling(false);
   clear_kernel_profile();
-  r.extra["kernel_profile_seconds"] = total;  // the rest of the run: norms, activations, re-layouts, the sampler
+  r.extra["kernel_profile_seconds"] = total;  // the rest of the run: norms, activations, re-layouts
   r.extra["kernel_profile"] = rows;
 }
 

@@ -34,8 +34,9 @@ const BenchTarget kBenchTargets[] = {
      "      [--save-result FILE] [--compare-to FILE]   save latents, decoded clip and taxels / report their rel_l2\n"
      "      and max_abs error against a saved run (e.g. --precision bf16 against an fp32 run)"},
     {"unet", bench_unet,
-     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr] [--weights DIR]\n"
-     "      [--kernel-profile]   also the time and GFLOP/s of each kernel shape (GEMM, convolution, attention)"},
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr]\n"
+     "      [--weights DIR] [--kernel-profile]   the profile: time, calls and GFLOP/s per GEMM, convolution and\n"
+     "      attention shape"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"vae_encode", bench_vae_encode,

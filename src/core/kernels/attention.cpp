@@ -105,8 +105,9 @@ void attention(const AttentionArgs& a) {
   // Q K^T and P V: 4 dh flop per (query, key) pair; a causal query i sees i + 1 keys.
   const double pairs = a.causal ? 0.5 * double(a.lq) * double(a.lq + 1) : double(a.lq) * double(a.lk);
   const KernelTimer timer(4.0 * double(a.batch * a.heads * a.dh) * pairs, [&] {
-    return "attention " + std::to_string(a.batch) + "x" + std::to_string(a.heads) + " heads lq " + std::to_string(a.lq) +
-           " lk " + std::to_string(a.lk) + " dh " + std::to_string(a.dh) + (a.causal ? " causal" : "");
+    return "attention " + std::to_string(a.batch) + "x" + std::to_string(a.heads) + " heads lq " +
+           std::to_string(a.lq) + " lk " + std::to_string(a.lk) + " dh " + std::to_string(a.dh) +
+           (a.causal ? " causal" : "");
   });
   EGOPD_CHECK(a.lq > 0 && a.lk > 0 && a.dh > 0, "attention: empty shape");
   EGOPD_CHECK(!a.causal || a.lq == a.lk, "attention: causal mask needs lq == lk");

@@ -372,8 +372,8 @@ static void check_operand(const Operand& op, const char* name) {
 void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, float* C, int64_t ldc,
           const Epilogue& ep) {
   const KernelTimer timer(2.0 * double(M) * double(N) * double(K), [&] {
-    return "gemm " + std::to_string(M) + "x" + std::to_string(N) + "x" + std::to_string(K) + (A.trans ? " A^T " : " A ") +
-           dtype_name(A.dtype) + (B.trans ? " B^T " : " B ") + dtype_name(B.dtype);
+    return "gemm " + std::to_string(M) + "x" + std::to_string(N) + "x" + std::to_string(K) +
+           (A.trans ? " A^T " : " A ") + dtype_name(A.dtype) + (B.trans ? " B^T " : " B ") + dtype_name(B.dtype);
   });
   if (M <= 0 || N <= 0) return;
   check_operand(A, "A");
