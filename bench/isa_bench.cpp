@@ -45,14 +45,17 @@ void run_loop(benchmark::State& state, bool supported, const char* needs, double
                :                                                                                               \
                : EGOPD_CLOBBER_YMM);
 
+// The rows of a tile, ROW(i, first accumulator, second accumulator) each.
+#define ROWS5(ROW) ROW(0, 0, 1) ROW(1, 2, 3) ROW(2, 4, 5) ROW(3, 6, 7) ROW(4, 8, 9)
+#define ROWS6(ROW) ROWS5(ROW) ROW(5, 10, 11)
+
 // AVX2 float32, 6 x 16 tile (avx2/gemm.cpp): per k, 2 B loads, 6 broadcasts, 12 FMAs of 8 lanes.
 #define FMA_ROW(i, c0, c1)                                  \
   "vbroadcastss " #i "*4(%[a]), %%ymm14\n\t"                \
   "vfmadd231ps %%ymm12, %%ymm14, %%ymm" #c0 "\n\t"          \
   "vfmadd231ps %%ymm13, %%ymm14, %%ymm" #c1 "\n\t"
 __attribute__((target("avx2,fma"))) void fma_6x16(const int32_t* a, const int32_t* b) {
-  Y_LOOP("vmovups", FMA_ROW(0, 0, 1) FMA_ROW(1, 2, 3) FMA_ROW(2, 4, 5) FMA_ROW(3, 6, 7) FMA_ROW(4, 8, 9)
-                        FMA_ROW(5, 10, 11), 24)
+  Y_LOOP("vmovups", ROWS6(FMA_ROW), 24)
 }
 
 // AVX2 int8, 6 x 16 tile (avx2/gemm.cpp): per pair of k, 2 B loads, 6 broadcasts, 12 vpmaddwd + 12 vpaddd.
@@ -63,8 +66,7 @@ __attribute__((target("avx2,fma"))) void fma_6x16(const int32_t* a, const int32_
   "vpmaddwd %%ymm13, %%ymm14, %%ymm15\n\t"                \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32_t* b) {
-  Y_LOOP("vmovdqu", MADD_ROW(0, 0, 1) MADD_ROW(1, 2, 3) MADD_ROW(2, 4, 5) MADD_ROW(3, 6, 7) MADD_ROW(4, 8, 9)
-              MADD_ROW(5, 10, 11), 24)
+  Y_LOOP("vmovdqu", ROWS6(MADD_ROW), 24)
 }
 
 // For comparison only (not exact for two int8 operands of -127..127, whose pair sums saturate int16): u8 x s8
@@ -78,7 +80,7 @@ __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32
   "vpmaddwd %%ymm15, %%ymm11, %%ymm15\n\t"               \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int32_t* b) {
-  Y_LOOP("vmovdqu", UBS_ROW(0, 0, 1) UBS_ROW(1, 2, 3) UBS_ROW(2, 4, 5) UBS_ROW(3, 6, 7) UBS_ROW(4, 8, 9), 20)
+  Y_LOOP("vmovdqu", ROWS5(UBS_ROW), 20)
 }
 
 #define EGOPD_CLOBBER_ZMM                                                                                         \
