@@ -237,19 +237,16 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
                    std::to_string(c.cout) + " hw" + std::to_string(c.hw) + " " + dtype_name(c.dt));
 }
 
-class ConvTest : public ::testing::TestWithParam<KernelPath> {
+class ConvTest : public test::KernelPathTest {
  protected:
   void SetUp() override {
-    if (!kernel_path_supported(GetParam()))
-      GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
-    guard_.emplace(GetParam());
+    KernelPathTest::SetUp();
     set_conv_algo(ConvAlgo::Direct);
   }
   void TearDown() override {
-    guard_.reset();
+    KernelPathTest::TearDown();
     set_conv_algo(algo_before_);
   }
-  std::optional<test::KernelPathGuard> guard_;
   ConvAlgo algo_before_ = conv_algo();
 };
 
@@ -484,7 +481,7 @@ TEST_P(ConvTest, Temporal) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, ConvTest, ::testing::ValuesIn(test::kAllKernelPaths),
-                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
+                         test::kernel_path_test_name);
 
 }  // namespace
 }  // namespace egopd

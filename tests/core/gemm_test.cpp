@@ -212,16 +212,7 @@ int run_case(const Case& c, uint32_t seed) {
   return bad;
 }
 
-class GemmTest : public ::testing::TestWithParam<KernelPath> {
- protected:
-  void SetUp() override {
-    if (!kernel_path_supported(GetParam()))
-      GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
-    guard_.emplace(GetParam());
-  }
-  void TearDown() override { guard_.reset(); }
-  std::optional<test::KernelPathGuard> guard_;
-};
+class GemmTest : public test::KernelPathTest {};
 
 TEST_P(GemmTest, AwkwardShapesAllTransposes) {
   uint32_t seed = 1;
@@ -463,7 +454,7 @@ TEST(GemmActTest, ApplyActMatchesDoubleReference) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, GemmTest, ::testing::ValuesIn(test::kAllKernelPaths),
-                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
+                         test::kernel_path_test_name);
 
 }  // namespace
 }  // namespace egopd

@@ -1,7 +1,10 @@
 #pragma once
 // Double-precision references shared by the kernel tests.
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -47,6 +50,24 @@ inline Precision precision_of(bool bf16, bool int8) {
 // Every kernel path, for parameterised suites (paths the CPU lacks are skipped with a message).
 inline const KernelPath kAllKernelPaths[] = {KernelPath::Portable, KernelPath::Avx2, KernelPath::Avx512,
                                             KernelPath::Neon};
+
+// Base of the suites parameterised over kernel paths: each test runs on its path (skipped, with the reason, where
+// this CPU lacks it), then the path in use before is restored. Instantiate with
+// INSTANTIATE_TEST_SUITE_P(Paths, Suite, ::testing::ValuesIn(test::kAllKernelPaths), test::kernel_path_test_name).
+class KernelPathTest : public ::testing::TestWithParam<KernelPath> {
+ protected:
+  void SetUp() override {
+    if (!kernel_path_supported(GetParam())) GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
+    guard_.emplace(GetParam());
+  }
+  void TearDown() override { guard_.reset(); }
+
+ private:
+  std::optional<KernelPathGuard> guard_;
+};
+inline std::string kernel_path_test_name(const ::testing::TestParamInfo<KernelPath>& i) {
+  return kernel_path_name(i.param);
+}
 
 // Weights stored in a dtype, with their exact values for the reference.
 // I8 weights carry one scale per output channel (each channel = `per_channel` consecutive elements).

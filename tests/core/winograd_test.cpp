@@ -231,17 +231,12 @@ int run_wino(const WinoCase& c, WinogradTile t, uint32_t seed) {
   });
 }
 
-class WinogradTest : public ::testing::TestWithParam<KernelPath> {
+class WinogradTest : public test::KernelPathTest {
  protected:
-  void SetUp() override {
-    if (!kernel_path_supported(GetParam())) GTEST_SKIP() << "this CPU lacks " << kernel_path_features(GetParam());
-    guard_.emplace(GetParam());
-  }
   void TearDown() override {
-    guard_.reset();
+    KernelPathTest::TearDown();
     set_conv_algo(algo_before_);
   }
-  std::optional<test::KernelPathGuard> guard_;
   ConvAlgo algo_before_ = conv_algo();
 };
 
@@ -403,7 +398,7 @@ TEST_P(WinogradTest, Conv2dDispatch) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Paths, WinogradTest, ::testing::ValuesIn(test::kAllKernelPaths),
-                         [](const ::testing::TestParamInfo<KernelPath>& i) { return std::string(kernel_path_name(i.param)); });
+                         test::kernel_path_test_name);
 
 // The models' layer shapes (one frame, F16 weights as stored; sampled output channels), every supported path, the
 // tile each would use and F(2x2); prints the largest error / tolerance ratio seen.
