@@ -19,6 +19,8 @@ struct Linear {
   Linear(const WeightView& w, const std::string& name, int64_t in, int64_t out, bool has_bias = true);
   // x [rows, in] -> y [rows, out]; accumulate: y += result (fused residual add).
   void forward(const float* x, int64_t rows, float* y, Act act = Act::None, bool accumulate = false) const;
+  // GEGLU of the projection: x [rows, in] -> y [rows, out / 2] = value half * GELU(gate half) (gemm_geglu).
+  void forward_geglu(const float* x, int64_t rows, float* y) const;
 };
 
 struct Conv2d {

@@ -11,7 +11,7 @@
 
 namespace egopd {
 
-// Rows per feed-forward chunk: bounds the [rows, 8·dim] projection scratch.
+// Rows per feed-forward chunk: bounds the [rows, 4·dim] GEGLU scratch.
 constexpr int64_t kFeedForwardRows = 2048;
 
 FeedForward::FeedForward(const WeightView& w, int64_t d) : dim(d), inner(4 * d) {
@@ -22,11 +22,10 @@ FeedForward::FeedForward(const WeightView& w, int64_t d) : dim(d), inner(4 * d) 
 void FeedForward::forward_add(const float* x, int64_t rows, float* y, Arena& arena) const {
   const size_t mark = arena.mark();
   const int64_t chunk = std::min(rows, kFeedForwardRows);
-  Tensor p = arena.take({chunk, 2 * inner}), g = arena.take({chunk, inner});
+  Tensor g = arena.take({chunk, inner});
   for (int64_t r0 = 0; r0 < rows; r0 += chunk) {
     const int64_t r = std::min(chunk, rows - r0);
-    proj.forward(x + r0 * dim, r, p.data());
-    geglu(p.data(), r, inner, g.data());
+    proj.forward_geglu(x + r0 * dim, r, g.data());
     out.forward(g.data(), r, y + r0 * dim, Act::None, /*accumulate=*/true);
   }
   arena.release(mark);

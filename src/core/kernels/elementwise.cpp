@@ -113,12 +113,15 @@ void gelu_inplace(float* x, int64_t n) { map_inplace(kernels().gelu, x, n); }
 void quick_gelu_inplace(float* x, int64_t n) { map_inplace(kernels().quick_gelu, x, n); }
 void erf_inplace(float* x, int64_t n) { map_inplace(kernels().erf, x, n); }
 
-void geglu(const float* p, int64_t rows, int64_t d, float* out) {
+void geglu_row(const float* a, const float* g, int64_t d, float* out) { kernels().geglu_row(a, g, d, out); }
+
+void geglu(const float* p, int64_t rows, int64_t d, float* out, int64_t ldo) {
   const auto row_fn = kernels().geglu_row;
+  if (ldo == 0) ldo = d;
 #pragma omp parallel for schedule(static) if (run_parallel(rows * d))
   for (int64_t r = 0; r < rows; ++r) {
     const float* a = p + r * 2 * d;  // [rows, 2d]: value half, then gate half
-    row_fn(a, a + d, d, out + r * d);
+    row_fn(a, a + d, d, out + r * ldo);
   }
 }
 

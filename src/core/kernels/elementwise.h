@@ -9,8 +9,11 @@ void gelu_inplace(float* x, int64_t n);        // exact: 0.5 x (1 + erf(x / sqrt
 void quick_gelu_inplace(float* x, int64_t n);  // x * sigmoid(1.702 x)
 void erf_inplace(float* x, int64_t n);         // erf, as used inside GELU (exposed for accuracy tests)
 
-// GEGLU tail: p [rows, 2*d] (the projection output) -> out [rows, d], out = p[:, :d] * GELU(p[:, d:]).
-void geglu(const float* p, int64_t rows, int64_t d, float* out);
+// GEGLU tail: p [rows, 2*d] (the projection output) -> out [rows, d] (row stride ldo, 0: d),
+// out = p[:, :d] * GELU(p[:, d:]).
+void geglu(const float* p, int64_t rows, int64_t d, float* out, int64_t ldo = 0);
+// One row from separate halves: out[j] = a[j] * GELU(g[j]), j < d (not threaded: for callers inside a region).
+void geglu_row(const float* a, const float* g, int64_t d, float* out);
 
 // Nearest-neighbour 2x upsample: x [planes, h, w] -> y [planes, 2h, 2w], y[i,j] = x[i/2, j/2].
 void upsample_nearest2x(const float* x, int64_t planes, int64_t h, int64_t w, float* y);

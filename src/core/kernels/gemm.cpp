@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/kernels/elementwise.h"
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/kernel_profile.h"
 #include "core/memory.h"
@@ -153,6 +154,36 @@ void run_gemm_merged(const GemmJob& job) {
   write_back(job, tmp, cols, job.seg_cols, Act::None);
 }
 
+// GEGLU's B: logical panel p is value panel p / 2 (even p) or gate panel p / 2 (odd p) of W's columns [value D | gate
+// D], D a multiple of NR, so that each pair of neighbouring panels holds the value and gate columns of one output tile.
+struct GluPairsB : BSource {
+  const BSource* src;
+  int64_t d;
+  int64_t column(int64_t n0, int NR) const { return (n0 / NR) % 2 * d + n0 / NR / 2 * NR; }
+  void pack(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, float* dst) const override {
+    src->pack(path, seg, k0, kc, column(n0, path.nr), nr, dst);
+  }
+  void pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
+                       float* dst) const override {
+    src->pack_bf16_pairs(path, seg, k0, kc, column(n0, path.nr), nr, dst);
+  }
+};
+
+thread_local AlignedScratch tl_glu;  // the GEGLU detours' [M, 2D] temporary, kept like the packing scratch
+
+// GEGLU over several K passes (the tile pairs need the whole sum): the plain product [value | gate] into a
+// temporary, then GEGLU of it.
+void run_geglu_via_temp(const GemmJob& job) {
+  float* const tmp = tl_glu.get(size_t(job.M * job.seg_cols));
+  GemmJob t = job;
+  t.b = static_cast<const GluPairsB*>(job.b)->src;
+  t.c = tmp;
+  t.ldc = job.seg_cols;
+  t.glu_out = nullptr;
+  run_gemm(t);
+  geglu(tmp, job.M, job.seg_cols / 2, job.glu_out, job.glu_ld);
+}
+
 }  // namespace
 
 void run_gemm(const GemmJob& job) {
@@ -177,6 +208,8 @@ void run_gemm(const GemmJob& job) {
   // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
   const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
+  const bool glu = job.glu_out != nullptr;
+  if (glu && npc > 1) return run_geglu_via_temp(job);
   // Int8: B micro-panels are packed in float32 into a buffer of the thread's and quantised into compact slots (a
   // quarter of the bytes), and a B block spans about kInt8BBlockBytes: several times the columns of a float32
   // block, so A (packed and quantised once per column block and thread) is repacked that much less often.
@@ -191,8 +224,9 @@ void run_gemm(const GemmJob& job) {
   const MicroKernel uk = int8 ? path.micro_i8 : bf16_pairs ? path.micro_bf16 : path.micro;
   const int64_t panels_per_seg = ceil_div(job.seg_cols, NR);
   const int64_t npanels = job.segments * panels_per_seg;
-  const int64_t njc = ceil_div(npanels * NR, kNcMax);
-  const int64_t jc_panels = ceil_div(npanels, njc);
+  const int64_t unit = glu ? 2 : 1;  // panels handed out together: GEGLU's pairs never straddle blocks or threads
+  const int64_t jc_panels = unit * ceil_div(ceil_div(npanels, unit), ceil_div(npanels * NR, kNcMax));
+  const int64_t njc = ceil_div(npanels, jc_panels);
   const int64_t mpanels = ceil_div(M, MR);
 
   const double flops = 2.0 * double(M) * double(job.segments * job.seg_cols) * double(K);
@@ -218,7 +252,7 @@ void run_gemm(const GemmJob& job) {
   // Splitting M, panel p of a B block sits at slot p - p_begin (shared); splitting N, each thread packs and reads
   // only its own panels, in its own slots (threads run unsynchronised, so the slots must not move with kc or
   // with the size of the column block).
-  const int64_t b_block = b_panel_floats * (jc_panels + (split_m ? 0 : threads));  // floats of one B block
+  const int64_t b_block = b_panel_floats * (jc_panels + (split_m ? 0 : unit * threads));  // floats of one B block
   const int64_t b_float_panel = int8 ? kc_slot * NR : 0;  // int8: one float32 B micro-panel per thread
   const bool double_buffer = split_m && threads > 1 && njc * npc > 1;
   const int64_t a_slice = direct_a ? 0 : (kMcMax * kc_slot + 15) / 16 * 16;  // floats of one thread's A block
@@ -249,9 +283,12 @@ void run_gemm(const GemmJob& job) {
       const int64_t p_begin = jc * jc_panels, p_end = std::min(npanels, p_begin + jc_panels);
       const int64_t np = p_end - p_begin;
       // Panels this thread packs, and panels it multiplies (all of them when splitting M).
-      const int64_t pk_lo = p_begin + np * tid / nth, pk_hi = p_begin + np * (tid + 1) / nth;
+      // GEGLU: whole pairs per thread.
+      const int64_t units = ceil_div(np, unit);
+      const int64_t pk_lo = p_begin + unit * (units * tid / nth);
+      const int64_t pk_hi = std::min(p_end, p_begin + unit * (units * (tid + 1) / nth));
       const int64_t pm_lo = split_m ? p_begin : pk_lo, pm_hi = split_m ? p_end : pk_hi;
-      const int64_t own_slots = ceil_div(jc_panels, nth);  // nth * own_slots <= jc_panels + nth - 1
+      const int64_t own_slots = unit * ceil_div(units, nth);  // nth * own_slots <= jc_panels + unit * nth
       const auto panel_slot = [&](int64_t p) { return split_m ? p - p_begin : p - pk_lo + tid * own_slots; };
       for (int64_t pc = 0; pc < npc; ++pc, ++iter) {
         const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
@@ -282,6 +319,27 @@ void run_gemm(const GemmJob& job) {
         te.i8_group = i8_group;
         const float* bias_row = last && ep.bias && ep.bias_per_row ? ep.bias : nullptr;
         const float* bias_col = last && ep.bias && !ep.bias_per_row ? ep.bias : nullptr;
+        // GEGLU: each pair's value and gate tiles into scratch (no C), then combined into glu_out.
+        const auto glu_pairs = [&](int64_t p_lo, int64_t p_hi, int64_t ic, int64_t mc, TileEpilogue t,
+                                   const float* bias) {
+          alignas(64) float tiles[3][kMaxMR * kMaxNR];  // value, gate, GEGLU
+          const auto& pairs = static_cast<const GluPairsB&>(*job.b);
+          for (int64_t p = p_lo; p < p_hi; p += 2)
+            for (int64_t ir = 0; ir < mc; ir += MR) {
+              const int64_t i = ic + ir;
+              const int mr = int(std::min<int64_t>(MR, mc - ir));
+              for (int h = 0; h < 2; ++h) {
+                t.bias_col = bias ? bias + pairs.column((p + h) * NR, NR) : nullptr;
+                const float* bp = b_pack + panel_slot(p + h) * b_panel_floats;
+                if (direct_a)
+                  uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, tiles[h], NR, mr, NR, t);
+                else
+                  uk(kc, a_pack + ir * kc_slot, 1, MR, bp, tiles[h], NR, mr, NR, t);
+              }
+              geglu_row(tiles[0], tiles[1], mr * NR, tiles[2]);  // one call per tile: the rows are contiguous here
+              for (int r = 0; r < mr; ++r) std::copy_n(tiles[2] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
+            }
+        };
         // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.
         for (int64_t chunk = split_m ? next_chunk[iter].fetch_add(1) : 0; chunk < nchunks;
              chunk = split_m ? next_chunk[iter].fetch_add(1) : chunk + 1) {
@@ -298,6 +356,10 @@ void run_gemm(const GemmJob& job) {
               if (bf16) round_to_bf16(panel, kc * MR);
               if (int8) path.quantize_a_i8(panel, panel, MR, kc, i8_group);
             }
+          if (glu) {
+            glu_pairs(pm_lo, pm_hi, ic, mc, te, bias_col);
+            continue;
+          }
           for (int64_t p = pm_lo; p < pm_hi; ++p) {
             const int64_t seg = p / panels_per_seg, n0 = (p % panels_per_seg) * NR;
             const int nr = int(std::min<int64_t>(NR, job.seg_cols - n0));
@@ -389,6 +451,38 @@ void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, f
   job.c = C;
   job.ldc = ldc;
   job.ep = ep;
+  gemm_detail::run_gemm(job);
+}
+
+void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand& B, const float* bias, float* out,
+                int64_t ldo) {
+  const KernelTimer timer(4.0 * double(M) * double(D) * double(K), [&] {
+    return "gemm_geglu " + std::to_string(M) + "x" + std::to_string(2 * D) + "x" + std::to_string(K) +
+           (A.trans ? " A^T " : " A ") + dtype_name(A.dtype) + (B.trans ? " B^T " : " B ") + dtype_name(B.dtype);
+  });
+  if (M <= 0 || D <= 0) return;
+  check_operand(A, "A");
+  check_operand(B, "B");
+  const int NR = gemm_detail::gemm_path().nr;
+  if (D % NR != 0) {  // pairs of whole panels only: else the plain GEMM into a temporary, then GEGLU
+    float* const tmp = gemm_detail::tl_glu.get(size_t(M * 2 * D));
+    gemm(M, 2 * D, K, A, B, tmp, 2 * D, Epilogue{bias});
+    return geglu(tmp, M, D, out, ldo);
+  }
+  gemm_detail::OperandA a(A);
+  gemm_detail::OperandB b(B);
+  gemm_detail::GluPairsB pairs;
+  pairs.src = &b;
+  pairs.d = D;
+  gemm_detail::GemmJob job;
+  job.M = M;
+  job.K = K;
+  job.seg_cols = 2 * D;
+  job.a = &a;
+  job.b = &pairs;
+  job.ep.bias = bias;
+  job.glu_out = out;
+  job.glu_ld = ldo;
   gemm_detail::run_gemm(job);
 }
 

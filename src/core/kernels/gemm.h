@@ -35,6 +35,13 @@ struct Epilogue {
 void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, float* C, int64_t ldc,
           const Epilogue& ep = {});
 
+// GEGLU of a linear layer: out[M, D] = (x·Wvᵀ + bv) * GELU(x·Wgᵀ + bg), with W = B (trans, [2D, K]: the value rows
+// Wv first, then the gate rows Wg) and bias [2D] (or null) split the same way; out has row stride ldo. The same
+// numbers as gemm into a [M, 2D] temporary followed by geglu (elementwise.h), without that temporary: each tile of
+// value columns is multiplied beside its tile of gate columns and combined while in cache.
+void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand& B, const float* bias, float* out,
+                int64_t ldo);
+
 // Arithmetic of the GEMM engine (linear layers and convolutions), process-wide like the kernel path:
 //   Fp32 (default): float32 operands, products and sums.
 //   Bf16: both operands rounded to bfloat16 (nearest even) as they are packed, float32 accumulation. On CPUs with

@@ -198,6 +198,10 @@ struct GemmJob {
   float* c = nullptr;
   int64_t ldc = 0, c_seg_stride = 0;
   Epilogue ep;  // bias per column (linear) or per row (conv)
+  // GEGLU (gemm_geglu): B's panels come in pairs, value then gate (GluPairsB), and each pair's two tiles go to a
+  // thread's scratch instead of C: glu_out[i, q*NR + j] = value * GELU(gate) for pair q. C is not written.
+  float* glu_out = nullptr;
+  int64_t glu_ld = 0;
 };
 
 // The blocked, threaded driver (threads = num_threads(), 1 inside a parallel region or for tiny jobs).
