@@ -21,9 +21,9 @@ void Linear::forward(const float* x, int64_t rows, float* y, Act act, bool accum
   gemm(rows, out, in, f32_operand(x, in), weight_operand_t(weight, in), y, out, ep);
 }
 
-void Linear::forward_geglu(const float* x, int64_t rows, float* y) const {
+void Linear::forward_geglu(const float* x, int64_t rows, float* y, float* scratch) const {
   gemm_geglu(rows, out / 2, in, f32_operand(x, in), weight_operand_t(weight, in), bias.empty() ? nullptr : bias.data(),
-             y, out / 2);
+             y, out / 2, scratch);
 }
 
 Conv2d::Conv2d(const WeightView& w, const std::string& name, int64_t cin, int64_t cout, int64_t kernel,

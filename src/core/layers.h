@@ -19,8 +19,10 @@ struct Linear {
   Linear(const WeightView& w, const std::string& name, int64_t in, int64_t out, bool has_bias = true);
   // x [rows, in] -> y [rows, out]; accumulate: y += result (fused residual add).
   void forward(const float* x, int64_t rows, float* y, Act act = Act::None, bool accumulate = false) const;
-  // GEGLU of the projection: x [rows, in] -> y [rows, out / 2] = value half * GELU(gate half) (gemm_geglu).
-  void forward_geglu(const float* x, int64_t rows, float* y) const;
+  // GEGLU of the projection: x [rows, in] -> y [rows, out / 2] = value half * GELU(gate half) (gemm_geglu; scratch
+  // [rows, out] where geglu_needs_scratch()).
+  void forward_geglu(const float* x, int64_t rows, float* y, float* scratch) const;
+  bool geglu_needs_scratch() const { return gemm_geglu_needs_scratch(out / 2, in); }
 };
 
 struct Conv2d {

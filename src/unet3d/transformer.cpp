@@ -11,7 +11,8 @@
 
 namespace egopd {
 
-// Rows per feed-forward chunk: bounds the [rows, 4·dim] GEGLU scratch.
+// Rows per feed-forward chunk: bounds its scratch ([rows, 4·dim], and [rows, 8·dim] where the projection is stored
+// whole: gemm_geglu).
 constexpr int64_t kFeedForwardRows = 2048;
 
 FeedForward::FeedForward(const WeightView& w, int64_t d) : dim(d), inner(4 * d) {
@@ -23,9 +24,10 @@ void FeedForward::forward_add(const float* x, int64_t rows, float* y, Arena& are
   const size_t mark = arena.mark();
   const int64_t chunk = std::min(rows, kFeedForwardRows);
   Tensor g = arena.take({chunk, inner});
+  Tensor p = proj.geglu_needs_scratch() ? arena.take({chunk, 2 * inner}) : Tensor();
   for (int64_t r0 = 0; r0 < rows; r0 += chunk) {
     const int64_t r = std::min(chunk, rows - r0);
-    proj.forward_geglu(x + r0 * dim, r, g.data());
+    proj.forward_geglu(x + r0 * dim, r, g.data(), p.data());
     out.forward(g.data(), r, y + r0 * dim, Act::None, /*accumulate=*/true);
   }
   arena.release(mark);

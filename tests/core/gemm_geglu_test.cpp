@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/cpu.h"
+#include "core/error.h"
 #include "core/kernel_reference.h"
 #include "core/kernels/elementwise.h"
 #include "core/kernels/gemm.h"
@@ -46,20 +47,21 @@ int run_case(const GegluCase& c, uint32_t seed) {
   std::vector<float> out(size_t(c.M * ldo), 7.0f), p(size_t(c.M * 2 * c.D)), want(size_t(c.M * c.D));
   {
     const test::PrecisionGuard precision(c.precision);
-    gemm_geglu(c.M, c.D, c.K, f32_operand(x.data(), c.K), wb, b, out.data(), ldo);
+    // The scratch only where gemm_geglu_needs_scratch says so: were it wrong, gemm_geglu would throw.
+    std::vector<float> scratch(gemm_geglu_needs_scratch(c.D, c.K) ? size_t(c.M * 2 * c.D) : 0);
+    gemm_geglu(c.M, c.D, c.K, f32_operand(x.data(), c.K), wb, b, out.data(), ldo,
+               scratch.empty() ? nullptr : scratch.data());
     gemm(c.M, 2 * c.D, c.K, f32_operand(x.data(), c.K), wb, p.data(), 2 * c.D, Epilogue{b});
     geglu(p.data(), c.M, c.D, want.data());
   }
   int bad = 0;
-  const auto fail = [&](const std::string& what) {
-    if (bad++ < 3) ADD_FAILURE() << describe(c) << ": " << what;
-  };
+  const auto report = [&] { return bad++ < 3; };  // the first three failures are printed, all are counted
   for (int64_t i = 0; i < c.M; ++i) {
     for (int64_t j = 0; j < c.D; ++j) {
       const float got = out[size_t(i * ldo + j)];
-      if (got != want[size_t(i * c.D + j)])  // the same arithmetic as the unfused layer, bit for bit
-        fail("(" + std::to_string(i) + "," + std::to_string(j) + ") " + std::to_string(got) + " against unfused " +
-             std::to_string(want[size_t(i * c.D + j)]));
+      if (got != want[size_t(i * c.D + j)] && report())  // the same arithmetic as the unfused layer, bit for bit
+        ADD_FAILURE() << describe(c) << ": (" << i << "," << j << ") " << got << " against unfused "
+                      << want[size_t(i * c.D + j)];
       if (c.precision != Precision::Fp32) continue;  // gemm_test checks the reduced-precision products exactly
       double v = c.bias ? bias[size_t(j)] : 0, g = c.bias ? bias[size_t(c.D + j)] : 0;
       double va = std::fabs(v), ga = std::fabs(g);
@@ -75,12 +77,11 @@ int run_case(const GegluCase& c, uint32_t seed) {
       // a few roundings of the product and of GELU itself.
       const double ev = 2.0 * double(c.K + 3) * kU * va, eg = 2.0 * double(c.K + 3) * kU * ga;
       const double tol = std::fabs(gelu) * ev + (std::fabs(v) + ev) * 1.2 * eg + 16 * kU * std::fabs(ref) + 1e-30;
-      if (!(std::fabs(got - ref) <= tol))
-        fail("(" + std::to_string(i) + "," + std::to_string(j) + ") " + std::to_string(got) + " want " +
-             std::to_string(ref) + " tol " + std::to_string(tol));
+      if (!(std::fabs(got - ref) <= tol) && report())
+        ADD_FAILURE() << describe(c) << ": (" << i << "," << j << ") " << got << " want " << ref << " tol " << tol;
     }
     for (int64_t j = c.D; j < ldo; ++j)
-      if (out[size_t(i * ldo + j)] != 7.0f) fail("wrote past row " + std::to_string(i));
+      if (out[size_t(i * ldo + j)] != 7.0f && report()) ADD_FAILURE() << describe(c) << ": wrote past row " << i;
   }
   return bad;
 }
@@ -106,6 +107,21 @@ TEST_P(GemmGegluTest, PairsOfPanelsMatchTheUnfusedLayer) {
         }
   }
   set_num_threads(saved);
+}
+
+TEST_P(GemmGegluTest, ScratchIsAskedForWhereTheProjectionIsStored) {
+  const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
+  EXPECT_FALSE(gemm_geglu_needs_scratch(path.nr, 7));
+  EXPECT_TRUE(gemm_geglu_needs_scratch(path.nr + 1, 7));
+  EXPECT_TRUE(gemm_geglu_needs_scratch(path.nr, 2 * path.kc + 1));
+  std::vector<float> x(6 * 3), w(size_t(2 * (path.nr + 1) * 3)), out(size_t(6 * (path.nr + 1)));
+  Operand wb = f32_operand(w.data(), 3, true);
+  try {
+    gemm_geglu(6, path.nr + 1, 3, f32_operand(x.data(), 3), wb, nullptr, out.data(), path.nr + 1, nullptr);
+    ADD_FAILURE() << "no error without the scratch it needs";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("gemm_geglu"), std::string::npos) << e.what();
+  }
 }
 
 TEST_P(GemmGegluTest, WidthsOutsidePairsFallBack) {

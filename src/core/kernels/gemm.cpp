@@ -169,19 +169,36 @@ struct GluPairsB : BSource {
   }
 };
 
-thread_local AlignedScratch tl_glu;  // the GEGLU detours' [M, 2D] temporary, kept like the packing scratch
-
-// GEGLU over several K passes (the tile pairs need the whole sum): the plain product [value | gate] into a
-// temporary, then GEGLU of it.
-void run_geglu_via_temp(const GemmJob& job) {
-  float* const tmp = tl_glu.get(size_t(job.M * job.seg_cols));
+// GEGLU over several K passes (the tile pairs need the whole sum): the plain product [value | gate] into the
+// caller's scratch, then GEGLU of it.
+void run_geglu_via_scratch(const GemmJob& job) {
+  if (!job.glu_scratch) throw Error("gemm_geglu: this product needs its [M, 2D] scratch (gemm_geglu_needs_scratch)");
   GemmJob t = job;
   t.b = static_cast<const GluPairsB*>(job.b)->src;
-  t.c = tmp;
+  t.c = job.glu_scratch;
   t.ldc = job.seg_cols;
   t.glu_out = nullptr;
   run_gemm(t);
-  geglu(tmp, job.M, job.seg_cols / 2, job.glu_out, job.glu_ld);
+  geglu(job.glu_scratch, job.M, job.seg_cols / 2, job.glu_out, job.glu_ld);
+}
+
+// The K blocking of a product on `path` in the current precision: the int8 quantisation group (0 otherwise), the
+// depth of a K pass and the number of passes.
+struct KPasses {
+  int64_t i8_group, kc_blk, npc;
+};
+KPasses k_passes(const GemmPath& path, int64_t K) {
+  const bool int8 = precision() == Precision::Int8 && K > 0;
+  // Int8: K in balanced quantisation groups of at most kInt8Block (gemm.h), a K pass of up to kInt8GroupsPerPass
+  // whole groups (the micro-kernel sums the groups of a pass in registers, so C is read and written once per pass).
+  const int64_t i8_group = int8 ? ceil_div(K, ceil_div(K, kInt8Block)) : 0;
+  // Bf16 pairs take half the bytes of float32: twice the depth per K pass fills the same cache, and C is read and
+  // written half as often.
+  const bool bf16_pairs = precision() == Precision::Bf16 && path.micro_bf16;
+  const int64_t kc_max = bf16_pairs ? 2 * path.kc : path.kc;
+  const int64_t kc_blk = int8 ? i8_group * std::min(kInt8GroupsPerPass, ceil_div(K, i8_group))
+                              : K > 0 ? ceil_div(K, ceil_div(K, kc_max)) : 0;
+  return {i8_group, kc_blk, kc_blk > 0 ? ceil_div(K, kc_blk) : 1};
 }
 
 }  // namespace
@@ -194,22 +211,14 @@ void run_gemm(const GemmJob& job) {
   if (merge_segments(job, NR)) return run_gemm_merged(job);
   const bool int8 = precision() == Precision::Int8 && K > 0;
   const int64_t kMcMax = path.mc;
-  // Int8: K in balanced quantisation groups of at most kInt8Block (gemm.h), a K pass of up to kInt8GroupsPerPass
-  // whole groups (the micro-kernel sums the groups of a pass in registers, so C is read and written once per pass).
-  const int64_t i8_group = int8 ? ceil_div(K, ceil_div(K, kInt8Block)) : 0;
-  // Bf16 pairs take half the bytes of float32: twice the depth per K pass fills the same cache, and C is read and
-  // written half as often.
   const bool bf16 = precision() == Precision::Bf16, bf16_pairs = bf16 && path.micro_bf16;
-  const int64_t kc_max = bf16_pairs ? 2 * path.kc : path.kc;
-  const int64_t kc_blk = int8 ? i8_group * std::min(kInt8GroupsPerPass, ceil_div(K, i8_group))
-                              : K > 0 ? ceil_div(K, ceil_div(K, kc_max)) : 0;
-  const int64_t npc = kc_blk > 0 ? ceil_div(K, kc_blk) : 1;
+  const auto [i8_group, kc_blk, npc] = k_passes(path, K);
   // Floats between consecutive packed panels of one lane (per MR rows / NR columns): an int8 panel is written over
   // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
   const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
   const bool glu = job.glu_out != nullptr;
-  if (glu && npc > 1) return run_geglu_via_temp(job);
+  if (glu && npc > 1) return run_geglu_via_scratch(job);
   // Int8: B micro-panels are packed in float32 into a buffer of the thread's and quantised into compact slots (a
   // quarter of the bytes), and a B block spans about kInt8BBlockBytes: several times the columns of a float32
   // block, so A (packed and quantised once per column block and thread) is repacked that much less often.
@@ -337,7 +346,8 @@ void run_gemm(const GemmJob& job) {
                   uk(kc, a_pack + ir * kc_slot, 1, MR, bp, tiles[h], NR, mr, NR, t);
               }
               geglu_row(tiles[0], tiles[1], mr * NR, tiles[2]);  // one call per tile: the rows are contiguous here
-              for (int r = 0; r < mr; ++r) std::copy_n(tiles[2] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
+              for (int r = 0; r < mr; ++r)
+                std::copy_n(tiles[2] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
             }
         };
         // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.
@@ -454,8 +464,13 @@ void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, f
   gemm_detail::run_gemm(job);
 }
 
+bool gemm_geglu_needs_scratch(int64_t D, int64_t K) {
+  const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
+  return D % path.nr != 0 || gemm_detail::k_passes(path, K).npc > 1;
+}
+
 void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand& B, const float* bias, float* out,
-                int64_t ldo) {
+                int64_t ldo, float* scratch) {
   const KernelTimer timer(4.0 * double(M) * double(D) * double(K), [&] {
     return "gemm_geglu " + std::to_string(M) + "x" + std::to_string(2 * D) + "x" + std::to_string(K) +
            (A.trans ? " A^T " : " A ") + dtype_name(A.dtype) + (B.trans ? " B^T " : " B ") + dtype_name(B.dtype);
@@ -463,11 +478,10 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
   if (M <= 0 || D <= 0) return;
   check_operand(A, "A");
   check_operand(B, "B");
-  const int NR = gemm_detail::gemm_path().nr;
-  if (D % NR != 0) {  // pairs of whole panels only: else the plain GEMM into a temporary, then GEGLU
-    float* const tmp = gemm_detail::tl_glu.get(size_t(M * 2 * D));
-    gemm(M, 2 * D, K, A, B, tmp, 2 * D, Epilogue{bias});
-    return geglu(tmp, M, D, out, ldo);
+  if (D % gemm_detail::gemm_path().nr != 0) {  // pairs of whole panels only: else the plain GEMM, then GEGLU
+    if (!scratch) throw Error("gemm_geglu: this product needs its [M, 2D] scratch (gemm_geglu_needs_scratch)");
+    gemm(M, 2 * D, K, A, B, scratch, 2 * D, Epilogue{bias});
+    return geglu(scratch, M, D, out, ldo);
   }
   gemm_detail::OperandA a(A);
   gemm_detail::OperandB b(B);
@@ -483,6 +497,7 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
   job.ep.bias = bias;
   job.glu_out = out;
   job.glu_ld = ldo;
+  job.glu_scratch = scratch;
   gemm_detail::run_gemm(job);
 }
 

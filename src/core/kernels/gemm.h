@@ -37,10 +37,13 @@ void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, f
 
 // GEGLU of a linear layer: out[M, D] = (x·Wvᵀ + bv) * GELU(x·Wgᵀ + bg), with W = B (trans, [2D, K]: the value rows
 // Wv first, then the gate rows Wg) and bias [2D] (or null) split the same way; out has row stride ldo. The same
-// numbers as gemm into a [M, 2D] temporary followed by geglu (elementwise.h), without that temporary: each tile of
-// value columns is multiplied beside its tile of gate columns and combined while in cache.
+// numbers as gemm into a [M, 2D] temporary followed by geglu (elementwise.h), without that temporary where it can:
+// each tile of value columns is multiplied beside its tile of gate columns and combined while in cache. Where the
+// kernel path's panels do not divide D, or K takes several passes, the projection goes through `scratch` ([M, 2D]
+// floats; gemm_geglu_needs_scratch says when, and it may be null otherwise).
+bool gemm_geglu_needs_scratch(int64_t D, int64_t K);
 void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand& B, const float* bias, float* out,
-                int64_t ldo);
+                int64_t ldo, float* scratch);
 
 // Arithmetic of the GEMM engine (linear layers and convolutions), process-wide like the kernel path:
 //   Fp32 (default): float32 operands, products and sums.

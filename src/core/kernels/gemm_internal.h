@@ -202,6 +202,7 @@ struct GemmJob {
   // thread's scratch instead of C: glu_out[i, q*NR + j] = value * GELU(gate) for pair q. C is not written.
   float* glu_out = nullptr;
   int64_t glu_ld = 0;
+  float* glu_scratch = nullptr;  // [M, 2D] for several K passes (the caller's, see gemm_geglu_needs_scratch)
 };
 
 // The blocked, threaded driver (threads = num_threads(), 1 inside a parallel region or for tiny jobs).
