@@ -298,7 +298,8 @@ void run_gemm(const GemmJob& job) {
       const int64_t pk_lo = p_begin + unit * (units * tid / nth);
       const int64_t pk_hi = std::min(p_end, p_begin + unit * (units * (tid + 1) / nth));
       const int64_t pm_lo = split_m ? p_begin : pk_lo, pm_hi = split_m ? p_end : pk_hi;
-      const int64_t own_slots = unit * ceil_div(units, nth);  // nth * own_slots <= jc_panels + unit * nth
+      // From the full block's width, not this block's: the slots must not move between blocks either.
+      const int64_t own_slots = unit * ceil_div(jc_panels / unit, nth);  // nth * own_slots <= jc_panels + unit * nth
       const auto panel_slot = [&](int64_t p) { return split_m ? p - p_begin : p - pk_lo + tid * own_slots; };
       for (int64_t pc = 0; pc < npc; ++pc, ++iter) {
         const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
