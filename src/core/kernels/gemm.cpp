@@ -169,8 +169,8 @@ struct GluPairsB : BSource {
   }
 };
 
-// GEGLU over several K passes (the tile pairs need the whole sum): the plain product [value | gate] into the
-// caller's scratch, then GEGLU of it.
+// GEGLU where pairs of panels cannot serve (several K passes: the tile pairs need the whole sum; panels that do not
+// divide D): the plain product [value | gate] into the caller's scratch, then GEGLU of it.
 void run_geglu_via_scratch(const GemmJob& job) {
   if (!job.glu_scratch) throw Error("gemm_geglu: this product needs its [M, 2D] scratch (gemm_geglu_needs_scratch)");
   GemmJob t = job;
@@ -201,6 +201,11 @@ KPasses k_passes(const GemmPath& path, int64_t K) {
   return {i8_group, kc_blk, kc_blk > 0 ? ceil_div(K, kc_blk) : 1};
 }
 
+// Whether a GEGLU of width d and depth K goes through the scratch (run_geglu_via_scratch) on `path`.
+bool glu_needs_scratch(const GemmPath& path, int64_t d, int64_t K) {
+  return d % path.nr != 0 || k_passes(path, K).npc > 1;
+}
+
 }  // namespace
 
 void run_gemm(const GemmJob& job) {
@@ -219,7 +224,7 @@ void run_gemm(const GemmJob& job) {
   const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
   const bool glu = job.glu_out != nullptr;
-  if (glu && npc > 1) return run_geglu_via_scratch(job);
+  if (glu && glu_needs_scratch(path, job.seg_cols / 2, K)) return run_geglu_via_scratch(job);
   // Int8: B micro-panels are packed in float32 into a buffer of the thread's and quantised into compact slots (a
   // quarter of the bytes), and a B block spans about kInt8BBlockBytes: several times the columns of a float32
   // block, so A (packed and quantised once per column block and thread) is repacked that much less often.
@@ -330,6 +335,14 @@ void run_gemm(const GemmJob& job) {
         te.i8_group = i8_group;
         const float* bias_row = last && ep.bias && ep.bias_per_row ? ep.bias : nullptr;
         const float* bias_col = last && ep.bias && !ep.bias_per_row ? ep.bias : nullptr;
+        // One tile: rows i .. i + mr - 1 (ir into the chunk's packed A) times a packed B panel, into c.
+        const auto multiply = [&](int64_t i, int64_t ir, int mr, const float* bp, float* c, int64_t ldc, int nr,
+                                  const TileEpilogue& t) {
+          if (direct_a)
+            uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, c, ldc, mr, nr, t);
+          else
+            uk(kc, a_pack + ir * kc_slot, 1, MR, bp, c, ldc, mr, nr, t);
+        };
         // GEGLU: each pair's value and gate tiles into scratch (no C), then combined into glu_out.
         const auto glu_pairs = [&](int64_t p_lo, int64_t p_hi, int64_t ic, int64_t mc, TileEpilogue t,
                                    const float* bias) {
@@ -341,11 +354,7 @@ void run_gemm(const GemmJob& job) {
               const int mr = int(std::min<int64_t>(MR, mc - ir));
               for (int h = 0; h < 2; ++h) {
                 t.bias_col = bias ? bias + pairs.column((p + h) * NR, NR) : nullptr;
-                const float* bp = b_pack + panel_slot(p + h) * b_panel_floats;
-                if (direct_a)
-                  uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, tiles[h], NR, mr, NR, t);
-                else
-                  uk(kc, a_pack + ir * kc_slot, 1, MR, bp, tiles[h], NR, mr, NR, t);
+                multiply(i, ir, mr, b_pack + panel_slot(p + h) * b_panel_floats, tiles[h], NR, NR, t);
               }
               geglu_row(tiles[0], tiles[1], mr * NR, tiles[2]);  // one call per tile: the rows are contiguous here
               for (int r = 0; r < mr; ++r)
@@ -382,10 +391,7 @@ void run_gemm(const GemmJob& job) {
               const int64_t i = ic + ir;
               const int mr = int(std::min<int64_t>(MR, mc - ir));
               te.bias_row = bias_row ? bias_row + i : nullptr;
-              if (direct_a)
-                uk(kc, job.a->direct + i * job.a->lda + k0, job.a->lda, 1, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
-              else
-                uk(kc, a_pack + ir * kc_slot, 1, MR, bp, cp + i * job.ldc, job.ldc, mr, nr, te);
+              multiply(i, ir, mr, bp, cp + i * job.ldc, job.ldc, nr, te);
             }
           }
         }
@@ -467,8 +473,7 @@ void gemm(int64_t M, int64_t N, int64_t K, const Operand& A, const Operand& B, f
 }
 
 bool gemm_geglu_needs_scratch(int64_t D, int64_t K) {
-  const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
-  return D % path.nr != 0 || gemm_detail::k_passes(path, K).npc > 1;
+  return gemm_detail::glu_needs_scratch(gemm_detail::gemm_path(), D, K);
 }
 
 void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand& B, const float* bias, float* out,
@@ -480,11 +485,6 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
   if (M <= 0 || D <= 0) return;
   check_operand(A, "A");
   check_operand(B, "B");
-  if (D % gemm_detail::gemm_path().nr != 0) {  // pairs of whole panels only: else the plain GEMM, then GEGLU
-    if (!scratch) throw Error("gemm_geglu: this product needs its [M, 2D] scratch (gemm_geglu_needs_scratch)");
-    gemm(M, 2 * D, K, A, B, scratch, 2 * D, Epilogue{bias});
-    return geglu(scratch, M, D, out, ldo);
-  }
   gemm_detail::OperandA a(A);
   gemm_detail::OperandB b(B);
   gemm_detail::GluPairsB pairs;
