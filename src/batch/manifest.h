@@ -28,7 +28,7 @@ struct ManifestClip {
   std::vector<std::string> splits;
   int line = 0;  // 1-based line in the manifest file
 
-  ClipSource source() const { return ClipSource{frames, masks, prompt, meta}; }
+  ClipSource source() const { return ClipSource{frames, masks, prompt, meta, {}, {}}; }
 };
 
 struct Manifest {

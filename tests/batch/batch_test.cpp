@@ -5,10 +5,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -264,19 +266,24 @@ TEST_F(Batch, MemoryStaysFlatOverFiftyClips) {
   ASSERT_EQ(s.rss_after_clip.size(), 50u);
   ASSERT_EQ(s.heap_after_clip.size(), 50u);
   // After a warm-up (allocator pools, lazily paged weights) neither the heap in use nor the resident set grows over
-  // the last twenty clips (measured: 0-12 KB of resident set on a quiet machine); leaking one 3 x 64 x 64 float frame
-  // (48 KB) per clip shows up as about 1 MB. The first thirty clips are warm-up: twice, with the tests running in
-  // parallel on a loaded machine, the resident set between clips 10 and 50 rose by about 1.5 MB (not reproduced
-  // alone; another malloc arena for an OpenMP thread is the likely one-time step), so a window that starts at clip 10
-  // is not a leak test.
+  // the last twenty clips: leaking one 3 x 64 x 64 float frame (48 KB) per clip shows up as about 1 MB of heap. The
+  // resident set also takes one-time steps (measured: +0.5-1.5 MB once in about 12 runs with the tests running in
+  // parallel, the heap flat; another malloc arena for an OpenMP thread is the likely one), so it is judged by its
+  // median step per clip, which one-time steps do not move and a steady leak outside the heap (mappings, say) does,
+  // and by a total well above such steps.
   EXPECT_GT(s.heap_after_clip[49], 0) << "no heap count on this platform";
   const int64_t heap_growth = s.heap_after_clip[49] - s.heap_after_clip[29];
   EXPECT_LT(heap_growth, 384 << 10) << "the heap in use grew by " << heap_growth << " bytes between clip 30 and 50";
 #if !EGOPD_ADDRESS_SANITIZER
   // Under AddressSanitizer the resident set also holds the quarantine of freed blocks (256 MB by default): measured,
-  // it swings by 10-30 MB from clip to clip, so its difference between two clips says nothing about leaks there.
+  // it swings by 10-30 MB from clip to clip, so its steps between clips say nothing about leaks there.
+  std::vector<int64_t> steps;
+  for (size_t i = 30; i < 50; ++i) steps.push_back(s.rss_after_clip[i] - s.rss_after_clip[i - 1]);
+  std::nth_element(steps.begin(), steps.begin() + 10, steps.end());
+  EXPECT_LT(steps[10], 24 << 10) << "the resident set grew by a median " << steps[10]
+                                 << " bytes per clip between clip 30 and clip 50";
   const int64_t growth = s.rss_after_clip[49] - s.rss_after_clip[29];
-  EXPECT_LT(growth, 384 << 10) << "RSS grew by " << growth << " bytes between clip 30 and clip 50";
+  EXPECT_LT(growth, 4 << 20) << "the resident set grew by " << growth << " bytes between clip 30 and clip 50";
 #endif
 }
 
