@@ -71,17 +71,23 @@ std::vector<float> random_floats(size_t n, uint32_t seed) {
 int bench_gemm(const Args& a) {
   const int64_t M = positive(a, "gemm", "m", 0), N = positive(a, "gemm", "n", 0), K = positive(a, "gemm", "k", 0);
   const DType dt = weight_dtype(a, "gemm");
-  const bool trans_b = a.flag("trans-b");
+  const bool trans_b = a.flag("trans-b"), geglu = a.flag("geglu");
   const int64_t repeat = positive(a, "gemm", "repeat", 10, 100000);
   const bool json = a.flag("json");
   a.finish();
   if (double(M) * K + double(K) * N + double(M) * N > 2e9) throw Error("bench gemm: matrices too large (> 2e9 floats)");
+  if (geglu && N % 2 != 0) throw Error("bench gemm: --geglu needs an even --n (value and gate columns)");
 
   const std::vector<float> A = random_floats(size_t(M * K), 1);
   const BenchWeights B(size_t(K * N), dt, 2);
   std::vector<float> C(size_t(M * N));
   const Operand bop{B.data(), dt, trans_b ? K : N, trans_b, nullptr};  // W [N,K] with --trans-b, else [K,N]
-  const CallTimes s = median_call_times(repeat, true, [&] { gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N); });
+  // --geglu: the feed-forward's projection, [M, N / 2] = GEGLU of the [M, N] product (value | gate columns).
+  std::vector<float> scratch(geglu && gemm_geglu_needs_scratch(N / 2, K) ? size_t(M * N) : 0);
+  const CallTimes s = median_call_times(repeat, true, [&] {
+    if (geglu) return gemm_geglu(M, N / 2, K, f32_operand(A.data(), K), bop, nullptr, C.data(), N / 2, scratch.data());
+    gemm(M, N, K, f32_operand(A.data(), K), bop, C.data(), N);
+  });
 
   BenchReport r;
   r.target = "gemm";
@@ -94,8 +100,9 @@ int bench_gemm(const Args& a) {
   r.extra["k"] = K;
   r.extra["dtype"] = dtype_name(dt);
   r.extra["trans_b"] = trans_b;
+  r.extra["geglu"] = geglu;
   r.extra["repeat"] = repeat;
-    print_bench_report(r, json);
+  print_bench_report(r, json);
   return 0;
 }
 

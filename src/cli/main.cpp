@@ -44,7 +44,7 @@ const BenchTarget kBenchTargets[] = {
     {"vae_decode", bench_vae_decode,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--decode-chunk N] [--repeat 1]\n"
      "      [--kernel-profile]"},
-    {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--repeat R]"},
+    {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--geglu] [--repeat R]"},
     {"conv2d", bench_conv2d,
      "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]\n"
      "      (GFLOP per call 2*outputs*cin*kh*kw also for Winograd: direct-equivalent GFLOP/s)"},

@@ -87,6 +87,7 @@ expect_error "--shard 1/1: needs 0 <= I < N" "$egopd" batch --manifest "$work/m.
 expect_error "unknown command 'predcit'" "$egopd" predcit --out "$out"
 expect_error "--seed expects an integer" "$convert" synth --out "$out" --seed -5
 expect_error "--lcm-steps" "$convert" synth --out "$out" --lcm-steps x
+expect_error "--geglu needs an even --n" "$egopd" bench gemm --m 4 --n 5 --k 4 --geglu
 
 # Extra metadata fields (a dataset's category, say) are reported by name, and the run goes on.
 "${p[@]}" --meta "$work/extra.json" --threads 1 2>"$work/extra.log" || fail "extra field: $(tail -1 "$work/extra.log")"
@@ -97,6 +98,9 @@ for conv in direct auto; do
   "$egopd" bench gemm --m 64 --n 64 --k 64 --threads 1 --conv "$conv" --json >"$work/bench_$conv.json" 2>/dev/null \
     || fail "bench gemm --conv $conv"
 done
+"$egopd" bench gemm --m 64 --n 128 --k 64 --threads 1 --geglu --json >"$work/bench_geglu.json" 2>/dev/null \
+  || fail "bench gemm --geglu"
+grep -q '"geglu":true' "$work/bench_geglu.json" || fail "bench gemm --geglu: $(cat "$work/bench_geglu.json")"
 grep -q '"percent_of_peak_is"' "$work/bench_direct.json" && fail "direct fp32 report qualifies its % of peak"
 grep -q '"percent_of_peak_is":"direct-fp32-equivalent' "$work/bench_auto.json" \
   || fail "--conv auto report does not qualify its % of peak: $(cat "$work/bench_auto.json")"
