@@ -25,7 +25,8 @@ std::string KeyCheck::summary(const std::string& label) const {
   auto part = [&](const std::vector<std::string>& v, const char* what) {
     if (v.empty()) return;
     if (s.back() != ':') s += ";";
-    s += " " + std::to_string(v.size()) + " " + what + " (" + join_limited(v, 8) + ")";
+    s += ' ';  // (appended, not " " + string: GCC 12 warns -Wstringop-overflow falsely on that form)
+    s += std::to_string(v.size()) + " " + what + " (" + join_limited(v, 8) + ")";
   };
   part(missing, "missing");
   part(wrong_shape, "with the wrong shape");

@@ -64,7 +64,7 @@ int64_t StoredTensor::numel() const { return shape_numel(shape); }
 
 std::string StoredTensor::shape_str() const {
   std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) s += (i ? "," : "") + std::to_string(shape[i]);
+  for (size_t i = 0; i < shape.size(); ++i) s.append(i ? "," : "").append(std::to_string(shape[i]));
   return s + "]";
 }
 

@@ -25,7 +25,7 @@ WeightMap WeightMap::recorder(const std::string& label) {
 
 static std::string vec_str(const std::vector<int64_t>& v) {
   std::string s = "[";
-  for (size_t i = 0; i < v.size(); ++i) s += (i ? "," : "") + std::to_string(v[i]);
+  for (size_t i = 0; i < v.size(); ++i) s.append(i ? "," : "").append(std::to_string(v[i]));
   return s + "]";
 }
 

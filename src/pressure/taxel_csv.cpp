@@ -31,7 +31,7 @@ std::vector<std::string_view> split(std::string_view line) {
   }
 }
 
-std::string quoted(std::string_view s) { return "'" + std::string(s.substr(0, 40)) + "'"; }
+std::string quoted(std::string_view s) { return std::string("'").append(s.substr(0, 40)).append("'"); }
 
 }  // namespace
 
@@ -60,7 +60,7 @@ TaxelSequence parse_taxel_csv(const std::string& text, const std::string& source
       if (cells.size() < 2 || cells[0] != "frame")
         throw Error(at + ": header must be 'frame,p0,p1,...' (got " + quoted(line) + ")");
       for (size_t c = 1; c < cells.size(); ++c)
-        if (cells[c] != "p" + std::to_string(c - 1))
+        if (cells[c] != std::string("p").append(std::to_string(c - 1)))
           throw Error(at + ", column " + std::to_string(c + 1) + ": header expected 'p" + std::to_string(c - 1) +
                       "', got " + quoted(cells[c]));
       s.num_taxels = int(cells.size() - 1);

@@ -22,6 +22,10 @@ constexpr int kChains = 12;  // independent accumulators: more than FMA latency 
 // Each loop stores its result here: a side effect, so the compiler cannot treat a loop as a pure function and move
 // it across the clock reads around it.
 volatile float g_sink = 0;
+inline float sink(float v) {
+  g_sink = v;
+  return v;
+}
 
 #if defined(__x86_64__)
 __attribute__((target("avx512f"))) float fma_loop_avx512(int64_t iters) {
@@ -34,7 +38,9 @@ __attribute__((target("avx512f"))) float fma_loop_avx512(int64_t iters) {
   }
   __m512 s = acc[0];
   for (int i = 1; i < kChains; ++i) s = _mm512_add_ps(s, acc[i]);
-  return g_sink = _mm512_reduce_add_ps(s);
+  alignas(64) float v[16];  // (not _mm512_reduce_add_ps: GCC 12's header warns of an uninitialised operand in it)
+  _mm512_store_ps(v, s);
+  return sink(v[0] + v[15]);
 }
 
 __attribute__((target("avx2,fma"))) float fma_loop_avx2(int64_t iters) {
@@ -49,7 +55,7 @@ __attribute__((target("avx2,fma"))) float fma_loop_avx2(int64_t iters) {
   for (int i = 1; i < kChains; ++i) s = _mm256_add_ps(s, acc[i]);
   alignas(32) float v[8];
   _mm256_store_ps(v, s);
-  return g_sink = v[0] + v[7];
+  return sink(v[0] + v[7]);
 }
 #endif
 
@@ -64,7 +70,7 @@ float fma_loop_neon(int64_t iters) {
   }
   float32x4_t s = acc[0];
   for (int i = 1; i < kChains; ++i) s = vaddq_f32(s, acc[i]);
-  return g_sink = vaddvq_f32(s);
+  return sink(vaddvq_f32(s));
 }
 #endif
 
@@ -75,7 +81,7 @@ float fma_loop_scalar(int64_t iters) {
     for (int i = 0; i < kChains; ++i) acc[i] = acc[i] * 0.9999f + 1e-4f;  // what portable code compiles to
   float s = 0;
   for (int i = 0; i < kChains; ++i) s += acc[i];
-  return g_sink = s;
+  return sink(s);
 }
 
 int lanes(KernelPath p) {
