@@ -40,7 +40,7 @@ int cmd_tokenize(const Args& a) {
       std::printf("%s\n", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
     } else {
       std::string line;
-      for (size_t i = 0; i < t.ids.size(); ++i) line += (i ? " " : "") + std::to_string(t.ids[i]);
+      for (size_t i = 0; i < t.ids.size(); ++i) line.append(i ? " " : "").append(std::to_string(t.ids[i]));
       std::printf("%s\n", line.c_str());
     }
   }

@@ -20,7 +20,7 @@
 namespace egopd {
 
 class EgoPressureDiffPipeline;
-struct StageTimes;
+class StageTimes;
 using PromptFields = std::map<std::string, std::string>;
 
 struct PredictOptions {

@@ -71,7 +71,7 @@ fs::path Predict::root;
 
 void expect_prediction_folder(const fs::path& dir, int64_t frames) {
   for (int64_t f = 0; f < frames; ++f) {
-    char name[32];
+    char name[48];  // room for any long long
     std::snprintf(name, sizeof name, "heatmap_%03lld.png", static_cast<long long>(f));
     const cv::Mat png = cv::imread((dir / name).string());
     ASSERT_FALSE(png.empty()) << dir / name;

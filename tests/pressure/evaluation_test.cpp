@@ -100,7 +100,7 @@ TEST(Evaluation, PredictionEqualToStabilisedGroundTruthIsPerfect) {
     for (const auto& g : t.segment_groups())
       for (int m : g) row[m] = row[g[0]];
     csv += std::to_string(f);
-    for (double v : row) csv += "," + std::to_string(v);
+    for (double v : row) csv.append(",").append(std::to_string(v));
     csv += "\n";
   }
   const fs::path d = fresh_dir("perfect");

@@ -118,7 +118,9 @@ TEST(EulerSampler, AnyStepCountProperties) {
     ASSERT_EQ(int(s->sigmas().size()), n + 1);
     EXPECT_EQ(s->sigmas()[0], 700.0f) << n;
     EXPECT_EQ(s->sigmas()[n], 0.0f) << n;
-    if (n > 1) EXPECT_EQ(s->sigmas()[n - 1], 0.002f) << n;
+    if (n > 1) {
+      EXPECT_EQ(s->sigmas()[n - 1], 0.002f) << n;
+    }
     for (int i = 0; i < n; ++i) {
       EXPECT_GT(s->sigmas()[i], s->sigmas()[i + 1]) << n << ":" << i;
       EXPECT_NEAR(s->timesteps()[i], 0.25 * std::log(double(s->sigmas()[i])), 2e-7) << n << ":" << i;
