@@ -22,15 +22,6 @@ size_t OutTensor::nbytes() const {
   return n;
 }
 
-std::string shape_string(const std::vector<int64_t>& shape) {
-  std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) {
-    if (i) s += ',';
-    s += std::to_string(shape[i]);
-  }
-  return s + "]";
-}
-
 uint64_t shard_bytes_from_mb(int64_t mb) {
   if (mb < 0) throw Error("--shard-size must be a positive number of MB, got " + std::to_string(mb));
   return uint64_t(mb) << 20;

@@ -64,7 +64,4 @@ void release_stored(const StoredTensor& t);
 // Atomic copy of a whole file, streamed.
 void copy_file_atomic(const std::string& from, const std::string& to);
 
-// "[320,640,3,3]"
-std::string shape_string(const std::vector<int64_t>& shape);
-
 }  // namespace egopd

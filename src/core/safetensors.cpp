@@ -62,11 +62,7 @@ int64_t shape_numel(const std::vector<int64_t>& shape) {
 
 int64_t StoredTensor::numel() const { return shape_numel(shape); }
 
-std::string StoredTensor::shape_str() const {
-  std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) s.append(i ? "," : "").append(std::to_string(shape[i]));
-  return s + "]";
-}
+std::string StoredTensor::shape_str() const { return shape_string(shape); }
 
 Tensor StoredTensor::to_f32() const {
   if (!is_float_weight(dtype))

@@ -32,14 +32,13 @@ bool Shape::operator==(const Shape& o) const {
   return true;
 }
 
-std::string Shape::str() const {
+std::string shape_string(const std::vector<int64_t>& dims) {
   std::string s = "[";
-  for (int i = 0; i < n_; ++i) {
-    if (i) s += ",";
-    s += std::to_string(d_[i]);
-  }
+  for (size_t i = 0; i < dims.size(); ++i) s.append(i ? "," : "").append(std::to_string(dims[i]));
   return s + "]";
 }
+
+std::string Shape::str() const { return shape_string(vec()); }
 
 std::shared_ptr<float[]> alloc_floats(size_t n) {
   size_t bytes = std::max<size_t>(64, (n * sizeof(float) + 63) / 64 * 64);

@@ -23,12 +23,6 @@ WeightMap WeightMap::recorder(const std::string& label) {
   return m;
 }
 
-static std::string vec_str(const std::vector<int64_t>& v) {
-  std::string s = "[";
-  for (size_t i = 0; i < v.size(); ++i) s.append(i ? "," : "").append(std::to_string(v[i]));
-  return s + "]";
-}
-
 WeightRef WeightView::get(const std::string& name, const Shape& expected) const {
   const std::string k = key(name);
   if (map_->recording()) {
@@ -42,7 +36,7 @@ WeightRef WeightView::get(const std::string& name, const Shape& expected) const 
   if (!t) throw Error(map_->label() + ": missing tensor " + k + " (expected shape " + expected.str() + ")");
   std::vector<int64_t> want = expected.vec();
   if (t->shape != want)
-    throw Error(map_->label() + ": tensor " + k + " has shape " + vec_str(t->shape) + ", expected " + expected.str());
+    throw Error(map_->label() + ": tensor " + k + " has shape " + shape_string(t->shape) + ", expected " + expected.str());
   WeightRef r;
   r.key = k;
   r.dtype = t->dtype;
@@ -54,7 +48,7 @@ WeightRef WeightView::get(const std::string& name, const Shape& expected) const 
     if (!s) throw Error(map_->label() + ": int8 tensor " + k + " has no " + sk);
     if (s->dtype != DType::F32 || s->shape != std::vector<int64_t>{expected[0]})
       throw Error(map_->label() + ": tensor " + sk + " must be F32 [" + std::to_string(expected[0]) + "], got " +
-                  dtype_name(s->dtype) + " " + vec_str(s->shape));
+                  dtype_name(s->dtype) + " " + shape_string(s->shape));
     map_->mark_used(sk);
     r.scale = static_cast<const float*>(map_->aligned_data(*s));
   } else if (!is_float_weight(t->dtype)) {
