@@ -346,19 +346,25 @@ void run_gemm(const GemmJob& job) {
         // GEGLU: each pair's value and gate tiles into scratch (no C), then combined into glu_out.
         const auto glu_pairs = [&](int64_t p_lo, int64_t p_hi, int64_t ic, int64_t mc, TileEpilogue t,
                                    const float* bias) {
-          alignas(64) float tiles[3][kMaxMR * kMaxNR];  // value, gate, GEGLU
+          alignas(64) float tiles[2][kMaxMR * kMaxNR];  // value, gate
           const auto& pairs = static_cast<const GluPairsB&>(*job.b);
           for (int64_t p = p_lo; p < p_hi; p += 2)
             for (int64_t ir = 0; ir < mc; ir += MR) {
               const int64_t i = ic + ir;
               const int mr = int(std::min<int64_t>(MR, mc - ir));
+              // The GEGLU rows are written right after the two products: fetch their lines meanwhile (the
+              // micro-kernel's own prefetch covers only its scratch tiles).
+              for (int r = 0; r < mr; ++r)
+                for (int64_t j = 0; j < NR; j += 16)
+                  __builtin_prefetch(job.glu_out + (i + r) * job.glu_ld + p / 2 * NR + j, 1, 3);
               for (int h = 0; h < 2; ++h) {
                 t.bias_col = bias ? bias + pairs.column((p + h) * NR, NR) : nullptr;
                 multiply(i, ir, mr, b_pack + panel_slot(p + h) * b_panel_floats, tiles[h], NR, NR, t);
               }
-              geglu_row(tiles[0], tiles[1], mr * NR, tiles[2]);  // one call per tile: the rows are contiguous here
+              // Row by row straight into glu_out (a GEGLU tile written apart and copied row by row cost a libc
+              // memmove per 32 floats: 6% of a bfloat16 GEGLU product's time).
               for (int r = 0; r < mr; ++r)
-                std::copy_n(tiles[2] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
+                geglu_row(tiles[0] + r * NR, tiles[1] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
             }
         };
         // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.
