@@ -46,6 +46,11 @@ if [ ! -e "$opencv_root/.complete" ]; then
     --skip=check/empty "$suite" "$opencv_root"
   touch "$opencv_root/.complete"
 fi
+# Libraries the extraction brought along that multiarch has installed too (libgomp, ICU): the installed ones are
+# used, so that no directory of the build's run paths shadows the system's (CMake warns of each such conflict).
+for lib in "$opencv_root"/usr/lib/aarch64-linux-gnu/*.so.*; do
+  if [ ! -d "$lib" ] && [ -e "/usr/lib/aarch64-linux-gnu/$(basename "$lib")" ]; then rm -f "$lib"; fi
+done
 
 cmake -S . -B $build -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_TOOLCHAIN_FILE="$PWD/cmake/toolchain-aarch64-linux-gnu.cmake" \
