@@ -186,9 +186,19 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
         for (int64_t t = b0; t < b1; ++t) {
           const auto [f, n0, nr] = tile_at(t);
           pack_window(x + (f * cin + c0) * plane, plane, h, w, n0, nr, nc, win);
-          for (int64_t q = 0; q < mpanels; ++q)
-            window_tile_rows(int(std::min<int64_t>(MR, cout - q * MR)), win, nc, panel(pass, q), sums_of(b0, t, q),
-                             pass > 0);
+          for (int64_t q = 0; q < mpanels; ++q) {
+            const int mr = int(std::min<int64_t>(MR, cout - q * MR));
+            window_tile_rows(mr, win, nc, panel(pass, q), sums_of(b0, t, q), pass > 0);
+            // The last pass: fetch the tile's output rows into L2 while the products run, so that the block's
+            // stores below do not each wait for their line.
+            if (pass == npass - 1) {
+              const float* c = y + (f * cout + q * MR) * plane + n0;
+              for (int i = 0; i < mr; ++i) {
+                _mm_prefetch(reinterpret_cast<const char*>(c + i * plane), _MM_HINT_T1);
+                _mm_prefetch(reinterpret_cast<const char*>(c + i * plane + 16), _MM_HINT_T1);
+              }
+            }
+          }
         }
       }
       // The block's outputs, 12 channels at a time: each channel's pixels written in order (12 write streams; tile
