@@ -352,18 +352,18 @@ void run_gemm(const GemmJob& job) {
             for (int64_t ir = 0; ir < mc; ir += MR) {
               const int64_t i = ic + ir;
               const int mr = int(std::min<int64_t>(MR, mc - ir));
-              // The GEGLU rows are written right after the two products: fetch their lines meanwhile (the
+              float* const out = job.glu_out + i * job.glu_ld + p / 2 * NR;  // the pair's GEGLU tile
+              // Its rows are written right after the two products: fetch their lines meanwhile (the
               // micro-kernel's own prefetch covers only its scratch tiles).
               for (int r = 0; r < mr; ++r)
-                for (int64_t j = 0; j < NR; j += 16)
-                  __builtin_prefetch(job.glu_out + (i + r) * job.glu_ld + p / 2 * NR + j, 1, 3);
+                for (int64_t j = 0; j < NR; j += 16) __builtin_prefetch(out + r * job.glu_ld + j, 1, 3);
               for (int h = 0; h < 2; ++h) {
                 t.bias_col = bias ? bias + pairs.column((p + h) * NR, NR) : nullptr;
                 multiply(i, ir, mr, b_pack + panel_slot(p + h) * b_panel_floats, tiles[h], NR, NR, t);
               }
               // Row by row straight into glu_out, whose lines the prefetch above has brought in.
               for (int r = 0; r < mr; ++r)
-                geglu_row(tiles[0] + r * NR, tiles[1] + r * NR, NR, job.glu_out + (i + r) * job.glu_ld + p / 2 * NR);
+                geglu_row(tiles[0] + r * NR, tiles[1] + r * NR, NR, out + r * job.glu_ld);
             }
         };
         // split_m: take row chunks until none is left; otherwise this thread's panels times all rows.

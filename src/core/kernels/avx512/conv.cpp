@@ -175,6 +175,8 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
     // Tile t: frame f, pixels n0 .. n0 + nr - 1; its sums for row panel q in the thread's block starting at b0.
     const auto tile_at = [&](int64_t t) { return pixel_panel(t, tpf, plane, NR); };
     const auto sums_of = [&](int64_t b0, int64_t t, int64_t q) { return sums + ((t - b0) * mpanels + q) * tile_floats; };
+    // Its outputs: channel m0 of frame f from pixel n0 (rows a plane apart).
+    const auto out_at = [&](int64_t f, int64_t m0, int64_t n0) { return y + (f * cout + m0) * plane + n0; };
     TileEpilogue te;  // the last pass's: the earlier ones only add into the sums
     te.act = act;
     te.load_c = accumulate && act == Act::None;
@@ -192,7 +194,7 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
             // The last pass: fetch the tile's output rows into L2 while the products run, so that the block's
             // stores below do not each wait for their line.
             if (pass == npass - 1) {
-              const float* c = y + (f * cout + q * MR) * plane + n0;
+              const float* c = out_at(f, q * MR, n0);
               for (int i = 0; i < mr; ++i) {
                 _mm_prefetch(reinterpret_cast<const char*>(c + i * plane), _MM_HINT_T1);
                 _mm_prefetch(reinterpret_cast<const char*>(c + i * plane + 16), _MM_HINT_T1);
@@ -209,7 +211,7 @@ bool conv3x3_window_avx512(const float* x, int64_t n, int64_t h, int64_t w, cons
         te.bias_row = bias ? bias + m0 : nullptr;
         for (int64_t t = b0; t < b1; ++t) {
           const auto [f, n0, nr] = tile_at(t);
-          float* c = y + (f * cout + m0) * plane + n0;
+          float* c = out_at(f, m0, n0);
           prefetch_c(c, plane, mr);
           store_tile(sums_of(b0, t, q), c, plane, mr, nr, te);
         }
