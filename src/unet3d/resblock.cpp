@@ -1,7 +1,6 @@
 #include "unet3d/resblock.h"
 
 #include <cmath>
-#include <cstring>
 
 #include "core/kernels/channel_ops.h"
 #include "core/kernels/elementwise.h"
@@ -50,7 +49,7 @@ Tensor SpatioTemporalResBlock::forward(const Tensor& x, int64_t videos, const fl
   if (has_shortcut) {
     s_shortcut.forward(x.data(), N, H, W, sp.data());
   } else {
-    std::memcpy(sp.data(), x.data(), size_t(sp.numel()) * sizeof(float));
+    copy_floats(sp.data(), x.data(), sp.numel());
   }
   s_conv2.forward(h.data(), N, H, W, sp.data(), Act::None, /*accumulate=*/true);
 
@@ -61,7 +60,8 @@ Tensor SpatioTemporalResBlock::forward(const Tensor& x, int64_t videos, const fl
   t_time_proj.forward(temb_silu, N, te.data());
   add_frame_channel_bias(h.data(), N, cout, S, te.data());
   t_norm2.forward(h.data(), h.data(), videos, F, S, true);
-  Tensor u = sp.clone();
+  Tensor u(sp.shape());
+  copy_floats(u.data(), sp.data(), sp.numel());
   t_conv2.forward(h.data(), videos, F, S, u.data(), Act::None, true);
 
   // AlphaBlender: out = α·spatial + (1−α)·temporal

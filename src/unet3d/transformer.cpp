@@ -1,7 +1,6 @@
 #include "unet3d/transformer.h"
 
 #include <algorithm>
-#include <cstring>
 
 #include "core/error.h"
 #include "core/kernels/channel_ops.h"
@@ -121,7 +120,7 @@ Tensor TransformerSpatioTemporal::forward(const Tensor& x, int64_t videos, const
     b.ff.forward_add(nrm.data(), rows, z.data(), arena);
 
     // zt = z + pe[f] for every token of frame f
-    std::memcpy(zt.data(), z.data(), size_t(rows * C) * sizeof(float));
+    copy_floats(zt.data(), z.data(), rows * C);
     for (int64_t n = 0; n < N; ++n) add_row_vectors(zt.data() + n * L * C, L, C, pe.data() + (n % F) * C, L);
     const TemporalBasicTransformerBlock& t = temporal[i];
     t.norm_in.forward(zt.data(), nrm.data(), rows);
@@ -140,7 +139,8 @@ Tensor TransformerSpatioTemporal::forward(const Tensor& x, int64_t videos, const
 
   // out = x + Tok⁻¹(proj_out(z)): [N*L, C] -> [N, C, L], added onto the input
   proj_out.forward(z.data(), rows, tok.data());
-  Tensor out = x.clone();
+  Tensor out(x.shape());
+  copy_floats(out.data(), x.data(), x.numel());
   transpose_add_batched(tok.data(), out.data(), N, L, C);
   arena.release(mark);
   return out;

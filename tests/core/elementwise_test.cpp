@@ -280,5 +280,17 @@ TEST(Elementwise, BlendAndAdd) {
   }
 }
 
+// Sizes below and above the threading threshold (2^15) and odd chunk ends: every float copied, nothing past n.
+TEST(Elementwise, CopyFloats) {
+  for (int64_t n : {0, 1, 17, 32767, 32768, 100003}) {
+    SCOPED_TRACE(testing::Message() << "n=" << n);
+    std::vector<float> x(n + kGuard), y(n + kGuard, kSentinel);
+    for (int64_t i = 0; i < n + kGuard; ++i) x[i] = float(i) * 0.5f - 3.0f;
+    copy_floats(y.data(), x.data(), n);
+    expect_guard_intact(y, n, kSentinel);
+    for (int64_t i = 0; i < n; ++i) ASSERT_EQ(y[i], x[i]) << i;
+  }
+}
+
 }  // namespace
 }  // namespace egopd

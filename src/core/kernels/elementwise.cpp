@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include "core/cpu.h"
@@ -162,6 +163,10 @@ void blend_inplace(float* y, const float* x, float a, int64_t n) {
 void add_inplace(float* y, const float* x, int64_t n) {
   const auto span = kernels().add;
   for_chunks(n, [&](int64_t b, int64_t e) { span(y + b, x + b, e - b); });
+}
+
+void copy_floats(float* y, const float* x, int64_t n) {
+  for_chunks(n, [&](int64_t b, int64_t e) { std::memcpy(y + b, x + b, size_t(e - b) * sizeof(float)); });
 }
 
 }  // namespace egopd

@@ -26,5 +26,7 @@ void timestep_embedding(const float* t, int64_t n, int64_t dim, float* out);
 // y = a * x + (1 - a) * y   (AlphaBlender-style mix in place into y)
 void blend_inplace(float* y, const float* x, float a, int64_t n);
 void add_inplace(float* y, const float* x, int64_t n);
+// y = x, n floats; threaded when large (an activation-sized memcpy on one thread keeps the other waiting).
+void copy_floats(float* y, const float* x, int64_t n);
 
 }  // namespace egopd
