@@ -422,8 +422,9 @@ __attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_strid
           r[j] = _mm256_setzero_ps();
           continue;
         }
-        // Each lane is a stream of its own: fetch two steps ahead.
+        // Each lane is a stream of its own: fetch two steps ahead, and the next panel's row into L2.
         _mm_prefetch(base + (lane * ld + k + 32) * es, _MM_HINT_T0);
+        _mm_prefetch(base + ((lane + W) * ld + k) * es, _MM_HINT_T1);
         __m512 v = load16(p, dt, lane * ld + k, m);
         if (scale) v = _mm512_mul_ps(v, _mm512_set1_ps(scale[lane]));
         r[j] = _mm256_castsi256_ps((__m256i)_mm512_cvtneps_pbh(v));
