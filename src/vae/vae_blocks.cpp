@@ -45,7 +45,7 @@ void ResnetBlock2D::run_frame(const float* x, float* n1, float* out, int64_t H, 
   const int64_t hw = H * W;
   const auto shortcut = [&] {
     if (has_shortcut) conv_shortcut.forward(x, 1, H, W, out);
-    else if (out != x) std::memcpy(out, x, size_t(cout * hw) * sizeof(float));
+    else if (out != x) copy_floats(out, x, cout * hw);
   };
   const bool in_place_norm = n1 == x;
   if (in_place_norm) shortcut();
@@ -97,11 +97,17 @@ void MidBlockAttention::forward_frame(float* x, int64_t hw, float* scratch) cons
 
 // ---------------------------------------------------------------- EncoderDownsample / Upsample2x
 
+namespace {
+// Threads for a loop over n floats, unless already inside a parallel region.
+bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
+}  // namespace
+
 EncoderDownsample::EncoderDownsample(const WeightView& w, int64_t c_) : c(c_), conv(w, "conv", c_, c_, 3, 2, 0) {}
 
 void EncoderDownsample::forward_frame(const float* x, int64_t H, int64_t W, float* y, float* scratch) const {
   const int64_t pw = W + 1;
   float* padded = scratch;  // [c, H+1, W+1]: x with a zero column on the right and a zero row at the bottom
+#pragma omp parallel for schedule(static) if (parallel_worth(c * H * W))
   for (int64_t ch = 0; ch < c; ++ch) {
     float* dst = padded + ch * (H + 1) * pw;
     const float* src = x + ch * H * W;
@@ -124,8 +130,6 @@ void Upsample2x::forward_frame(const float* x, int64_t H, int64_t W, float* y, f
 // ---------------------------------------------------------------- TemporalResnetBlock
 
 namespace {
-
-bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
 
 // Per-channel scale and shift of GroupNorm group g from its statistics: y = x·scale[ch] + shift[ch].
 void group_affine(const GroupNorm& gn, int64_t g, double mean, double var, float* scale, float* shift) {
