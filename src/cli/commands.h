@@ -50,7 +50,7 @@ struct CallTimes {
 };
 CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<void()>& call);
 // FP32 peak of `threads` threads on the kernel path in use, measured with an FMA loop (override:
-// EGOPD_PEAK_GFLOPS per core).
-double peak_gflops(int threads);
+// EGOPD_PEAK_GFLOPS per core); probe_again: probe once more and keep the better figure (fma_peak.h).
+double peak_gflops(int threads, bool probe_again = false);
 
 }  // namespace egopd

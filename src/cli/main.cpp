@@ -131,7 +131,10 @@ int cmd_bench(const Args& a) {
   if (a.positional().empty()) throw Error("bench: name a target (see egopd bench --help)");
   const std::string t = a.positional()[0];
   for (const auto& b : kBenchTargets)
-    if (t == b.name) return b.run(a);
+    if (t == b.name) {
+      peak_gflops(num_threads());  // the first probe, before the run; the report probes again after it
+      return b.run(a);
+    }
   throw Error("bench: unknown target '" + t + "' (see egopd bench --help)");
 }
 

@@ -3,6 +3,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <chrono>
 #include <ctime>
 #include <map>
 #include <mutex>
@@ -105,12 +106,15 @@ double thread_cpu_seconds() {
 }
 
 // Each thread times its own loop in thread CPU time, so time slices taken by other programs on a shared machine
-// do not lower the figure; the threads still run at once (the all-core clock). Best of three rounds.
+// do not lower the figure; the threads still run at once (the all-core clock). Best of the rounds run in 0.2 s (at
+// least three): a slower moment of the host shorter than that leaves some rounds at full speed.
 double measure(KernelPath p, int threads) {
   const int64_t iters = p == KernelPath::Portable ? 2'000'000 : 4'000'000;  // ~0.02-0.05 s at 3 GHz
   double best = 0;
   run(p, iters / 4);  // wake the vector units (and the clock) up
-  for (int round = 0; round < 3; ++round) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(); };
+  for (int round = 0; round < 3 || (elapsed() < 0.2 && round < 40); ++round) {
     double total = 0;
 #pragma omp parallel num_threads(threads) reduction(+ : total)
     {
@@ -125,14 +129,19 @@ double measure(KernelPath p, int threads) {
 
 }  // namespace
 
-double measured_peak_gflops(KernelPath path, int threads) {
+namespace {
+// The best probe per (path, threads); probe: measure again even if one is kept.
+double best_peak(KernelPath path, int threads, bool probe) {
   static std::mutex mu;
-  static std::map<std::pair<int, int>, double> cache;
+  static std::map<std::pair<int, int>, double> best;
   std::lock_guard<std::mutex> lock(mu);
-  const auto key = std::make_pair(int(path), threads);
-  auto it = cache.find(key);
-  if (it == cache.end()) it = cache.emplace(key, measure(path, threads)).first;
-  return it->second;
+  double& b = best[std::make_pair(int(path), threads)];
+  if (b == 0 || probe) b = std::max(b, measure(path, threads));
+  return b;
 }
+}  // namespace
+
+double measured_peak_gflops(KernelPath path, int threads) { return best_peak(path, threads, false); }
+double remeasure_peak_gflops(KernelPath path, int threads) { return best_peak(path, threads, true); }
 
 }  // namespace egopd

@@ -7,7 +7,11 @@
 
 namespace egopd {
 
-// GFLOP/s of `threads` threads together (measured once per path and thread count, then cached).
+// GFLOP/s of `threads` threads together: the best probe so far for this path and thread count (probed on first
+// use). A probe is the best of its rounds over at least 0.2 s.
 double measured_peak_gflops(KernelPath path, int threads);
+// Probes again and keeps the better figure, which it returns: on a shared host a moment of contention lowers one
+// probe, so a benchmark probes before and after its run.
+double remeasure_peak_gflops(KernelPath path, int threads);
 
 }  // namespace egopd
