@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cstdlib>
-#include <cstring>
 #include <new>
 
 #include "core/error.h"
+#include "core/kernels/elementwise.h"
 
 namespace egopd {
 
@@ -85,7 +85,7 @@ Tensor Tensor::reshaped(const Shape& shape) const {
 
 Tensor Tensor::clone() const {
   Tensor t(shape_);
-  if (numel()) std::memcpy(t.data_, data_, size_t(numel()) * sizeof(float));
+  copy_floats(t.data_, data_, numel());  // threaded for activation-sized tensors
   return t;
 }
 

@@ -60,8 +60,7 @@ Tensor SpatioTemporalResBlock::forward(const Tensor& x, int64_t videos, const fl
   t_time_proj.forward(temb_silu, N, te.data());
   add_frame_channel_bias(h.data(), N, cout, S, te.data());
   t_norm2.forward(h.data(), h.data(), videos, F, S, true);
-  Tensor u(sp.shape());
-  copy_floats(u.data(), sp.data(), sp.numel());
+  Tensor u = sp.clone();
   t_conv2.forward(h.data(), videos, F, S, u.data(), Act::None, true);
 
   // AlphaBlender: out = α·spatial + (1−α)·temporal

@@ -139,8 +139,7 @@ Tensor TransformerSpatioTemporal::forward(const Tensor& x, int64_t videos, const
 
   // out = x + Tok⁻¹(proj_out(z)): [N*L, C] -> [N, C, L], added onto the input
   proj_out.forward(z.data(), rows, tok.data());
-  Tensor out(x.shape());
-  copy_floats(out.data(), x.data(), x.numel());
+  Tensor out = x.clone();
   transpose_add_batched(tok.data(), out.data(), N, L, C);
   arena.release(mark);
   return out;

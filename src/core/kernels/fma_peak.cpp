@@ -127,9 +127,6 @@ double measure(KernelPath p, int threads) {
   return best;
 }
 
-}  // namespace
-
-namespace {
 // The best probe per (path, threads); probe: measure again even if one is kept.
 double best_peak(KernelPath path, int threads, bool probe) {
   static std::mutex mu;
