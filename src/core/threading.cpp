@@ -55,4 +55,6 @@ int num_threads() {
 
 void init_threads_from_env() { set_num_threads(0); }
 
+bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
+
 }  // namespace egopd

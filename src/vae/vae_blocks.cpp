@@ -1,7 +1,5 @@
 #include "vae/vae_blocks.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -12,6 +10,7 @@
 #include "core/kernels/elementwise.h"
 #include "core/kernels/layout.h"
 #include "core/memory.h"
+#include "core/threading.h"
 #include "vae/vae_config.h"
 
 namespace egopd {
@@ -96,11 +95,6 @@ void MidBlockAttention::forward_frame(float* x, int64_t hw, float* scratch) cons
 }
 
 // ---------------------------------------------------------------- EncoderDownsample / Upsample2x
-
-namespace {
-// Threads for a loop over n floats, unless already inside a parallel region.
-bool parallel_worth(int64_t n) { return n >= (1 << 15) && !omp_in_parallel(); }
-}  // namespace
 
 EncoderDownsample::EncoderDownsample(const WeightView& w, int64_t c_) : c(c_), conv(w, "conv", c_, c_, 3, 2, 0) {}
 

@@ -10,6 +10,7 @@
 #include "core/cpu.h"
 #include "core/error.h"
 #include "core/kernels/simd_namespace.h"
+#include "core/threading.h"
 
 namespace egopd {
 
@@ -30,13 +31,11 @@ EGOPD_FOR_EACH_SIMD_NS(EGOPD_DECLARE_SPAN_KERNELS)
 
 namespace {
 
-constexpr int64_t kParallelMin = 1 << 15;  // below this many elements threads cost more than they save
-bool run_parallel(int64_t n) { return n >= kParallelMin && !omp_in_parallel(); }
 
 // Calls fn(begin, end) on contiguous chunks of [0, n) (64-float aligned), in parallel when n is large.
 template <class Fn>
 void for_chunks(int64_t n, Fn fn) {
-  if (!run_parallel(n)) {
+  if (!parallel_worth(n)) {
     fn(int64_t{0}, n);
     return;
   }
@@ -119,7 +118,7 @@ void geglu_row(const float* a, const float* g, int64_t d, float* out) { kernels(
 void geglu(const float* p, int64_t rows, int64_t d, float* out, int64_t ldo) {
   const auto row_fn = kernels().geglu_row;
   if (ldo == 0) ldo = d;
-#pragma omp parallel for schedule(static) if (run_parallel(rows * d))
+#pragma omp parallel for schedule(static) if (parallel_worth(rows * d))
   for (int64_t r = 0; r < rows; ++r) {
     const float* a = p + r * 2 * d;  // [rows, 2d]: value half, then gate half
     row_fn(a, a + d, d, out + r * ldo);
@@ -127,7 +126,7 @@ void geglu(const float* p, int64_t rows, int64_t d, float* out, int64_t ldo) {
 }
 
 void upsample_nearest2x(const float* x, int64_t planes, int64_t h, int64_t w, float* y) {
-#pragma omp parallel for schedule(static) if (run_parallel(planes * h * w * 4))
+#pragma omp parallel for schedule(static) if (parallel_worth(planes * h * w * 4))
   for (int64_t p = 0; p < planes; ++p) {
     const float* xp = x + p * h * w;
     float* yp = y + p * 4 * h * w;

@@ -1,7 +1,5 @@
 #include "core/kernels/norm.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <string>
@@ -9,6 +7,7 @@
 #include "core/cpu.h"
 #include "core/error.h"
 #include "core/kernels/simd_namespace.h"
+#include "core/threading.h"
 
 namespace egopd {
 
@@ -26,8 +25,7 @@ EGOPD_FOR_EACH_SIMD_NS(EGOPD_DECLARE_ROW_KERNELS)
 
 namespace {
 
-constexpr int64_t kParallelMin = 1 << 15;  // below this many elements threads cost more than they save
-bool run_parallel(int64_t units, int64_t n) { return units > 1 && n >= kParallelMin && !omp_in_parallel(); }
+bool run_parallel(int64_t units, int64_t n) { return units > 1 && parallel_worth(n); }
 
 float silu_scalar(float v) { return v / (1.0f + std::exp(-v)); }
 
