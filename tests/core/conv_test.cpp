@@ -200,7 +200,32 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
           double r = act_ref(c.act, s);
           const double lip = c.act == Act::None ? 1.0 : 1.2;
           double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
-          if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error (conv_temporal.cpp)
+          if (tile && c.bf16) {  // F(2,3) on bfloat16 operands: s = sum_i AT[r0][i] sum_c bf16(U_i) bf16(V_i)
+            if (tile != 2) ADD_FAILURE() << "bf16 takes F(2,3) only, not " << algo;
+            const int64_t r0 = t % 2, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
+            const TemporalWinogradMatrices& T = temporal_matrices(2);
+            s = bias[size_t(o)];
+            double sw = 0;
+            for (int64_t ci = 0; ci < c.cin; ++ci) {
+              float d[4], w[3];
+              for (int k = 0; k < 4; ++k) {
+                const int64_t ts = t0 + k;
+                d[k] = ts < 0 || ts >= c.f ? 0.0f : x[size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)];
+              }
+              for (int k = 0; k < 3; ++k) w[k] = float(wt.value[size_t((o * c.cin + ci) * 3 + k)]);
+              // The transforms in float32, as their one rounding each defines them (halving is exact).
+              const float h = 0.5f * (w[0] + w[2]);
+              const float u[4] = {w[0], h + 0.5f * w[1], h - 0.5f * w[1], w[2]};
+              const float v[4] = {d[0] - d[2], d[1] + d[2], d[2] - d[1], d[1] - d[3]};
+              for (int i = 0; i < 4; ++i) {
+                const double m = round_bf16(u[i]) * round_bf16(v[i]);
+                s += T.at[r0][i] * m;
+                sw += std::fabs(T.at[r0][i] * m);
+              }
+            }
+            r = act_ref(c.act, s);
+            tl = lip * 2.0 * double(c.cin + 4) * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
+          } else if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error (conv_temporal.cpp)
             const TemporalWinogradMatrices& T = temporal_matrices(tile);
             const int64_t r0 = t % tile, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
             double sw = 0;
@@ -235,6 +260,12 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
                "temporal b" + std::to_string(c.b) + " f" + std::to_string(c.f) + " " + std::to_string(c.cin) + "->" +
                    std::to_string(c.cout) + " hw" + std::to_string(c.hw) + " " + dtype_name(c.dt));
 }
+
+// Puts back the temporal Winograd's tuning knobs that a test changes.
+struct TemporalWinogradSettings {
+  int64_t bytes = conv_detail::temporal_winograd_bytes();
+  ~TemporalWinogradSettings() { conv_detail::temporal_winograd_bytes() = bytes, conv_detail::temporal_winograd_tile() = 0; }
+};
 
 class ConvTest : public test::KernelPathTest {
  protected:
@@ -377,6 +408,34 @@ TEST_P(ConvTest, Bf16Compute) {
   }
 }
 
+// Precision::Bf16 with Winograd along time: F(2,3) whatever the tile asked for, its transformed filters and frames
+// rounded to bfloat16 (the products' operands); frame counts with a partial last tile, pixel panel tails, odd
+// channel counts (a half-empty last pair), every weight dtype, epilogues, K beyond a GEMM pass, one pixel panel per
+// unit. Auto takes it where it takes Winograd in float32.
+TEST_P(ConvTest, Bf16TemporalWinograd) {
+  set_conv_algo(ConvAlgo::Winograd);
+  const TemporalWinogradSettings restore;
+  uint32_t seed = 900;
+  const auto bf16 = [](TemporalCase t) { return t.bf16 = true, t; };
+  for (int tile : {0, 4}) {
+    conv_detail::temporal_winograd_tile() = tile;
+    for (int64_t f : {2, 3, 16})
+      for (int64_t hw : {1, 33}) EXPECT_EQ(run_temporal(bf16({2, f, 7, 5, hw}), seed++), 0);
+  }
+  conv_detail::temporal_winograd_tile() = 0;
+  for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8})
+    EXPECT_EQ(run_temporal(bf16({1, 5, 18, 13, 40, dt, Act::SiLU, true}), seed++), 0);
+  EXPECT_EQ(run_temporal(bf16({1, 4, 701, 8, 40, DType::F16}), seed++), 0);  // cin > the GEMM's KC, odd
+  EXPECT_EQ(run_temporal(bf16({2, 3, 20, 14, 70, DType::F16, Act::GELU, false, false, false, 100}), seed++), 0);
+  conv_detail::temporal_winograd_bytes() = 1;
+  EXPECT_EQ(run_temporal(bf16({2, 5, 9, 13, 150, DType::F32, Act::SiLU, true}), seed++), 0);
+  conv_detail::temporal_winograd_bytes() = restore.bytes;
+  set_conv_algo(ConvAlgo::Auto);
+  const test::PrecisionGuard precision(Precision::Bf16);
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 64), "winograd F(2,3)");  // F(4,3) in float32
+  EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "direct");
+}
+
 // Precision::Int8 (3x3 convolutions then stay direct): the same cases within the quantisation bound; and the
 // result must differ from float32 (the operands really were quantised).
 TEST_P(ConvTest, Int8Compute) {
@@ -416,10 +475,7 @@ TEST_P(ConvTest, Int8Compute) {
 // blocks and panel tails, every weight dtype, activations and residuals; Auto takes it on large layers only.
 TEST_P(ConvTest, TemporalWinograd) {
   set_conv_algo(ConvAlgo::Winograd);
-  struct Restore {
-    int64_t bytes = conv_detail::temporal_winograd_bytes();
-    ~Restore() { conv_detail::temporal_winograd_bytes() = bytes, conv_detail::temporal_winograd_tile() = 0; }
-  } restore;
+  const TemporalWinogradSettings restore;
   uint32_t seed = 700;
   for (int tile : {2, 4}) {
     conv_detail::temporal_winograd_tile() = tile;

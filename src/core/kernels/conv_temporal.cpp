@@ -100,8 +100,9 @@ struct TemporalB : gemm_detail::BSource {
 constexpr int64_t kMinPixels = 32;
 
 bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
-  // One frame: the centre tap only; reduced precision: the direct GEMM's; no input channel: nothing to transform.
-  if (f < 2 || cin < 1 || precision() != Precision::Fp32) return false;
+  // One frame: the centre tap only; int8: the direct GEMM's (its per-row scales are of the stored weights); no input
+  // channel: nothing to transform.
+  if (f < 2 || cin < 1 || precision() == Precision::Int8) return false;
   const ConvAlgo algo = conv_algo();
   return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= 16 && cout >= 16 && hw >= kMinPixels);
 }
@@ -112,6 +113,9 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
 // per tile, outweigh the quarter of the products saved), 256-512 channels 1.05-1.17x, 1280 channels of 8x8 frames
 // 1.22x.
 int temporal_tile(int64_t f, int64_t cin) {
+  // Bf16 rounds the transformed operands: F(2,3)'s add and halve values and lose ~1.3x the direct bfloat16
+  // convolution's accuracy, F(4,3)'s scale them by up to 8 and lose ~3.8x (float64 simulation over 320 channels).
+  if (precision() == Precision::Bf16) return 2;
   if (const int forced = conv_detail::temporal_winograd_tile()) return forced;
   return cin >= 256 && 6 * ((f + 3) / 4) < 4 * ((f + 1) / 2) ? 4 : 2;
 }
@@ -177,6 +181,14 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   // element (r, c) at [c*MR + r] (rows past cout zero). The taps are packed by the direct convolution's A packer
   // (vectorised per path) into three panels of the thread's, then combined.
   const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * cin, u_floats = mpanels * panel_floats;
+  // Bf16: the transformed filters and frames are the products' inputs, rounded to bfloat16 (pairs for the native
+  // micro-kernel, float32 values of bfloat16 precision for the emulated one).
+  const bool bf16 = precision() == Precision::Bf16, pairs = bf16 && path.micro_bf16;
+  const gemm_detail::MicroKernel micro = pairs ? path.micro_bf16 : path.micro;
+  const auto to_bf16 = [&](float* panel, int width) {
+    if (pairs) path.to_bf16_pairs(panel, width, cin);
+    else gemm_detail::round_to_bf16(panel, width * cin);
+  };
   thread_local AlignedScratch a_buf, v_buf;
   const int transform_threads = cout * cin >= 4096 && !omp_in_parallel() ? num_threads() : 1;
   float* const A = a_buf.get(size_t(kA * u_floats + 3 * transform_threads * panel_floats));
@@ -193,6 +205,8 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
       taps.pack(path, q * MR, mr, cin, cin, w1);
       taps.pack(path, q * MR, mr, 2 * cin, cin, w2);
       filter_transform<M>(w0, w1, w2, panel_floats, A + q * panel_floats, u_floats);
+      if (bf16)
+        for (int i = 0; i < kA; ++i) to_bf16(A + i * u_floats + q * panel_floats, MR);
     }
   }
   // Units of work: one pixel panel (NR pixels) of one tile, whose V_i panels are packed once and multiplied by every
@@ -234,6 +248,8 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
           ld[k] = inside ? hw : 0;
         }
         path.pack_b_temporal_wino(M, in, ld, cin, un.nr, vb + u * unit_floats, vpanel);
+        if (bf16)
+          for (int i = 0; i < kA; ++i) to_bf16(vb + u * unit_floats + i * vpanel, NR);
       }
       for (int64_t q = 0; q < mpanels; ++q) {
         const int64_t m0 = q * MR;
@@ -241,7 +257,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
         for (int64_t u = 0; u < nu; ++u) {
           const auto [s, n0, nr] = unit(u0 + u);
           for (int i = 0; i < kA; ++i)
-            path.micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR,
+            micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR,
                        mr, nr, plain);
           // The last tile's frames past the video are not written.
           const int64_t bi = s / tiles, t0 = M * (s % tiles);
