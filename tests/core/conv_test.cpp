@@ -434,6 +434,8 @@ TEST_P(ConvTest, Bf16TemporalWinograd) {
   const test::PrecisionGuard precision(Precision::Bf16);
   EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 64), "winograd F(2,3)");  // F(4,3) in float32
   EXPECT_EQ(conv_temporal3_algorithm(16, 1280, 1280, 16), "direct");
+  EXPECT_EQ(conv_temporal3_algorithm(16, 256, 256, 1024), "winograd F(2,3)");
+  EXPECT_EQ(conv_temporal3_algorithm(16, 128, 128, 2048), "direct");  // F(2,3) in float32
 }
 
 // Precision::Int8 (3x3 convolutions then stay direct): the same cases within the quantisation bound; and the
