@@ -10,7 +10,8 @@
 //           y = (M0 + (M1 + M2) + (M3 + M4), (M1 - M2) + 2(M3 - M4), (M1 + M2) + 4(M3 + M4),
 //                (M1 - M2) + 8(M3 - M4) + M5)
 //   M_i = U_i · V_i                                                   (m + 2 products [cout, cin] x [cin, px])
-// V exists only as the micro-kernel's B panels, M only as its tiles.
+// V exists only as the micro-kernel's B panels, M only as its tiles. Under Precision::Bf16: F(2,3) only, with U and V
+// rounded to bfloat16 as the products' operands (the transforms themselves in float32).
 #include <omp.h>
 
 #include <algorithm>
@@ -260,8 +261,8 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
         for (int64_t u = 0; u < nu; ++u) {
           const auto [s, n0, nr] = unit(u0 + u);
           for (int i = 0; i < kA; ++i)
-            micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR,
-                       mr, nr, plain);
+            micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR, mr,
+                  nr, plain);
           // The last tile's frames past the video are not written.
           const int64_t bi = s / tiles, t0 = M * (s % tiles);
           for (int64_t t = t0; t < std::min<int64_t>(t0 + M, f); ++t)
