@@ -225,7 +225,7 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
             }
             r = act_ref(c.act, s);
             tl = lip * 2.0 * double(c.cin + 4) * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
-          } else if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error (conv_temporal.cpp)
+          } else if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error
             const TemporalWinogradMatrices& T = temporal_matrices(tile);
             const int64_t r0 = t % tile, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
             double sw = 0;
@@ -264,7 +264,10 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
 // Puts back the temporal Winograd's tuning knobs that a test changes.
 struct TemporalWinogradSettings {
   int64_t bytes = conv_detail::temporal_winograd_bytes();
-  ~TemporalWinogradSettings() { conv_detail::temporal_winograd_bytes() = bytes, conv_detail::temporal_winograd_tile() = 0; }
+  ~TemporalWinogradSettings() {
+    conv_detail::temporal_winograd_bytes() = bytes;
+    conv_detail::temporal_winograd_tile() = 0;
+  }
 };
 
 class ConvTest : public test::KernelPathTest {
@@ -411,7 +414,7 @@ TEST_P(ConvTest, Bf16Compute) {
 // Precision::Bf16 with Winograd along time: F(2,3) whatever the tile asked for, its transformed filters and frames
 // rounded to bfloat16 (the products' operands); frame counts with a partial last tile, pixel panel tails, odd
 // channel counts (a half-empty last pair), every weight dtype, epilogues, K beyond a GEMM pass, one pixel panel per
-// unit. Auto takes it where it takes Winograd in float32.
+// unit. Auto takes it from 256 input channels on (float32 from 16).
 TEST_P(ConvTest, Bf16TemporalWinograd) {
   set_conv_algo(ConvAlgo::Winograd);
   const TemporalWinogradSettings restore;
