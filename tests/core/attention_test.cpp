@@ -119,6 +119,107 @@ TEST(Attention, HeadDimOneFullBlockAndMaskedTail) { check_both_paths({1, 1, 19, 
 TEST(Attention, CausalThirtyTwoColumns) { check_both_paths({1, 2, 97, 97, 16, true}); }
 TEST(Attention, LargeScoresAreStable) { check_both_paths({1, 2, 40, 90, 16, false, false, 20.0f}); }
 
+// ---- Precision::Bf16 (attention.h) ---------------------------------------------------------------------------
+// The reference computes the rule in double: q, k, v rounded to bfloat16, s = c q.k (c = scale log2 e), m = ceil of
+// the row's max s, p = bf16(2^(s - m)), out = sum p v / sum p. The kernels' float32 scores differ from the double
+// ones by up to dh ulps of sum |c q_d k_d|, and their exp2 by a few ulps: where 2^(s - m) lies that close to a
+// midpoint between two bfloat16 values the kernel may round it the other way, so such weights (rare) are allowed
+// one bfloat16 step (at most 2^-7 relative) either way. Every other weight must round as the reference does: a
+// kernel that skipped rounding P, or the integral max, fails every case but the one-key ones.
+void check_bf16_case(const Case& c, uint32_t seed) {
+  const int64_t C = c.heads * c.dh;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> ud(-c.amplitude, c.amplitude), vd(-1.0f, 1.0f);
+  std::vector<float> qb(c.batch * c.lq * (C + 3)), kb(c.batch * c.lk * (C + 1)), vb(c.batch * c.lk * (C + 5));
+  for (float& x : qb) x = ud(rng);
+  for (float& x : kb) x = ud(rng);
+  for (float& x : vb) x = vd(rng);
+  AttentionArgs a;
+  a.batch = c.batch, a.heads = c.heads, a.lq = c.lq, a.lk = c.lk, a.dh = c.dh, a.causal = c.causal;
+  a.scale = 1.0f / std::sqrt(static_cast<float>(c.dh));
+  a.q = qb.data(), a.q_ld = C + 3, a.q_bs = c.lq * (C + 3);
+  a.k = kb.data(), a.k_ld = C + 1, a.k_bs = c.lk * (C + 1);
+  a.v = vb.data(), a.v_ld = C + 5, a.v_bs = c.lk * (C + 5);
+  std::vector<float> out(c.batch * c.lq * C, 12345.0f);
+  a.out = out.data(), a.out_ld = C, a.out_bs = c.lq * C;
+  attention(a);
+
+  const double cl = double(a.scale) * 1.4426950408889634;  // as the kernels form it: float(scale), then log2 e
+  const double step = std::ldexp(1.0, -7);                  // one bfloat16 step, relative (at most)
+  std::vector<double> s(c.lk), p(c.lk), slack(c.lk);
+  int64_t loose = 0, total = 0;
+  for (int64_t b = 0; b < c.batch; ++b)
+    for (int64_t h = 0; h < c.heads; ++h)
+      for (int64_t i = 0; i < c.lq; ++i) {
+        const int64_t nk = c.causal ? i + 1 : c.lk;
+        double mx = -INFINITY;
+        for (int64_t j = 0; j < nk; ++j) {
+          double dot = 0, mag = 0;
+          for (int64_t d = 0; d < c.dh; ++d) {
+            const double t = test::round_bf16(a.q[b * a.q_bs + i * a.q_ld + h * c.dh + d]) *
+                             test::round_bf16(a.k[b * a.k_bs + j * a.k_ld + h * c.dh + d]);
+            dot += t, mag += std::fabs(t);
+          }
+          s[j] = cl * dot;
+          // How far the kernel's exponent may stray: float32 sums of dh products and c, and exp2's few ulps.
+          slack[j] = (double(c.dh) + 4.0) * test::kU * cl * mag + 8.0 * test::kU;
+          mx = std::max(mx, s[j]);
+        }
+        const double m = std::ceil(mx);
+        double sum = 0;
+        for (int64_t j = 0; j < nk; ++j) {
+          const double e = std::exp2(s[j] - m);
+          p[j] = test::round_bf16(e);
+          // A midpoint within reach: the kernel may round to the other neighbour.
+          const double lo = test::round_bf16(e * (1 - 2 * slack[j])), hi = test::round_bf16(e * (1 + 2 * slack[j]));
+          slack[j] = lo != hi ? step * p[j] : 0.0;
+          loose += lo != hi, ++total;
+          sum += p[j];
+        }
+        for (int64_t d = 0; d < c.dh; ++d) {
+          double ref = 0, allow = 0, vmag = 0;
+          double loose_sum = 0;
+          for (int64_t j = 0; j < nk; ++j) {
+            const double v = test::round_bf16(a.v[b * a.v_bs + j * a.v_ld + h * c.dh + d]);
+            ref += p[j] * v, allow += slack[j] * std::fabs(v), vmag += p[j] * std::fabs(v), loose_sum += slack[j];
+          }
+          // A weight rounded the other way moves the numerator (by its step times v) and the sum (by its step,
+          // times the output); then float32 accumulation of nk products and of the sum, and the division.
+          const double rounding = (double(nk) + 8.0) * test::kU * 4.0 * vmag;
+          const double tol = (allow + loose_sum * std::fabs(ref / sum) + rounding) / sum + 1e-7;
+          const float got = out[b * a.out_bs + i * a.out_ld + h * c.dh + d];
+          ASSERT_NEAR(got, ref / sum, tol) << "b=" << b << " h=" << h << " i=" << i << " d=" << d;
+        }
+      }
+  // The allowance must stay an exception, or the test could not tell rounded weights from unrounded ones.
+  EXPECT_LT(loose * 20, total + 20) << loose << " of " << total << " weights within reach of a rounding midpoint";
+}
+
+void check_bf16_paths(const Case& c) {
+  const test::PrecisionGuard bf16(Precision::Bf16);
+  for (KernelPath path : supported_kernel_paths())
+    for (bool native : {true, false}) {
+      if (!native && path != KernelPath::Avx512) continue;  // only avx512 has both
+      test::KernelPathGuard guard(path);
+      set_attention_bf16_native(native);
+      SCOPED_TRACE(testing::Message() << kernel_path_name(path) << (native ? "" : " emulated") << " batch="
+                                      << c.batch << " heads=" << c.heads << " lq=" << c.lq << " lk=" << c.lk
+                                      << " dh=" << c.dh << (c.causal ? " causal" : ""));
+      check_bf16_case(c, 99u + static_cast<uint32_t>(c.lq * 7 + c.lk * 3 + c.dh));
+      set_attention_bf16_native(true);
+    }
+}
+
+TEST(AttentionBf16, OddLengthsAndHeadDim) { check_bf16_paths({2, 3, 5, 7, 5}); }
+TEST(AttentionBf16, SingleQuerySingleKey) { check_bf16_paths({1, 1, 1, 1, 4}); }
+TEST(AttentionBf16, KeyTilesWithOddTail) { check_bf16_paths({1, 2, 70, 101, 64}); }  // 48 + 48 + 5 keys
+TEST(AttentionBf16, QueryTilesAndColumnTails) { check_bf16_paths({2, 1, 145, 33, 32}); }  // 64 + 64 + 17
+TEST(AttentionBf16, HeadDimTails) { check_bf16_paths({1, 2, 19, 26, 97}); }  // pairs 48 + 1, V rows of 112
+TEST(AttentionBf16, Causal) { check_bf16_paths({1, 2, 150, 150, 16, true}); }
+TEST(AttentionBf16, TemporalSixteenFrames) { check_bf16_paths({37, 2, 16, 16, 64}); }
+TEST(AttentionBf16, OneFrame) { check_bf16_paths({5, 2, 1, 1, 64}); }
+TEST(AttentionBf16, LargeScores) { check_bf16_paths({1, 2, 40, 90, 16, false, false, 6.0f}); }
+
 TEST(Attention, RejectsCausalWithDifferentLengths) {
   std::vector<float> buf(64);
   AttentionArgs a;

@@ -2,6 +2,12 @@
 // Scaled-dot-product multi-head attention, computed in tiles with an online (streaming) softmax: the
 // [lq x lk] score matrix is never materialised beyond one tile. Heads are contiguous channel slices:
 // head j of a row uses channels [j*dh, (j+1)*dh). Float32.
+//
+// Precision::Bf16: q, k and v are rounded to bfloat16 (both products multiply bfloat16 values, exactly, and sum in
+// float32), and so are the softmax weights: with scores s = c q.k in the log2 domain (c = scale * log2 e) and an
+// integral running max m, p = bf16(2^(s - m)), out = sum p v / sum p. Raising m by an integer scales every p by a
+// power of two, which bfloat16 rounding commutes with: the result does not depend on how keys are tiled (the same
+// on every kernel path, up to float32 rounding). Native vdpbf16ps on AVX512-BF16, else emulated.
 #include <cstdint>
 
 namespace egopd {
@@ -22,5 +28,9 @@ struct AttentionArgs {
 };
 
 void attention(const AttentionArgs& a);
+
+// Whether Precision::Bf16 may use the CPU's bfloat16 dot product (default true); tests turn it off to run the
+// emulation on the avx512 path too.
+void set_attention_bf16_native(bool allowed);
 
 }  // namespace egopd

@@ -7,7 +7,8 @@
 //   K::kBQ, K::kBK                          queries and keys per tile
 //   K::kPad                                 output rows are padded to a multiple of this (the vector width)
 //   K::scores(qt, dh, k, k_ld, nk, ncol, st)         st[j][i] = sum_d k[j][d] qt[d][i] (stride kBQ), i < ncol
-//   K::softmax_columns(st, nk, ncol, m, l, corr)     st -> P^T; running max m, sum l; corr = rescale factors
+//   K::softmax_columns<kBf16>(st, nk, ncol, m, l, corr, scale)   st -> P^T; running max m, sum l; corr = rescale
+//                                                    factors (kBf16: scores times scale, integer max, P in bf16)
 //   K::scale_row(o, n, f)                            o[0..n) *= f (n a multiple of kPad)
 //   K::pv_rows(pt, nk, v, v_ld, dh, nq, o, o_ld)     o[i][d] += sum_j pt[j][i] v[j][d]
 //   K::store_row(dst, o, dh, f)                      dst[0..dh) = o * f
@@ -28,9 +29,10 @@ int64_t tile_workspace(int64_t dh) {
   return dh * K::kBQ + K::kBK * K::kBQ + K::kBQ * padded<K>(dh) + 3 * K::kBQ;
 }
 
-// Queries [q0, q0 + nq) (nq <= K::kBQ) of head h in batch b; work: tile_workspace<K>(dh) floats.
+// Queries [q0, q0 + nq) (nq <= K::kBQ) of head h in batch b; work: tile_workspace<K>(dh) floats. bf16: the
+// emulated Precision::Bf16 softmax (q, k and v are already rounded copies).
 template <class K>
-void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work) {
+void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work, bool bf16) {
   constexpr int64_t kBQ = K::kBQ, kBK = K::kBK;
   const int64_t dh = a.dh, dhp = padded<K>(dh);
   float* qt = work;            // [dh][kBQ]  c * Q^T, zero beyond nq
@@ -58,7 +60,8 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
         for (int64_t i = 0; i < ncol; ++i)
           if (k0 + j > q0 + i) st[j * kBQ + i] = -__builtin_inff();
     }
-    K::softmax_columns(st, nk, ncol, m, l, corr);
+    if (bf16) K::template softmax_columns<true>(st, nk, ncol, m, l, corr, 1.0f);  // c is in qt already
+    else K::template softmax_columns<false>(st, nk, ncol, m, l, corr, 1.0f);
     if (k0 > 0)  // rescale the accumulators of rows whose running max rose
       for (int64_t i = 0; i < nq; ++i)
         if (corr[i] != 1.0f) K::scale_row(o + i * dhp, dhp, corr[i]);

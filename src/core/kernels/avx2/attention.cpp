@@ -144,21 +144,30 @@ static void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, i
   }
 }
 
-// Online softmax of one key tile down each column (8 queries per vector): st holds S^T on entry and P^T on exit;
-// m (running max, log2 domain) and l (running sum) are updated; corr receives each column's rescale factor.
-static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
+// Online softmax of one key tile down each column (8 queries per vector): st holds the scores on entry (times
+// `scale` under kBf16) and P^T on exit; m (running max, log2 domain) and l (running sum) are updated; corr receives
+// each column's rescale factor. kBf16 (Precision::Bf16, attention.h): the running max is an integer and P is
+// rounded to bfloat16.
+template <bool kBf16>
+static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr, float scale) {
+  const __m256 ninf = _mm256_set1_ps(-__builtin_inff()), vscale = _mm256_set1_ps(scale);
   for (int64_t i = 0; i < ncol; i += 8) {
-    __m256 mx = _mm256_set1_ps(-__builtin_inff());
-    for (int64_t j = 0; j < nk; ++j) mx = _mm256_max_ps(mx, _mm256_loadu_ps(st + j * kBQ + i));
+    __m256 mx = ninf;
+    for (int64_t j = 0; j < nk; ++j) {
+      __m256 s = _mm256_loadu_ps(st + j * kBQ + i);
+      if (kBf16) _mm256_storeu_ps(st + j * kBQ + i, s = _mm256_mul_ps(s, vscale));
+      mx = _mm256_max_ps(mx, s);
+    }
+    if (kBf16) mx = _mm256_round_ps(mx, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC);
     const __m256 m_old = _mm256_loadu_ps(m + i);
     const __m256 m_new = _mm256_max_ps(m_old, mx);
     // A column with no visible key yet keeps m = -inf; subtract 0 instead so exp2(-inf - 0) = 0, not NaN.
-    const __m256 m_sub = _mm256_blendv_ps(m_new, _mm256_setzero_ps(),
-                                          _mm256_cmp_ps(m_new, _mm256_set1_ps(-__builtin_inff()), _CMP_EQ_OQ));
+    const __m256 m_sub = _mm256_blendv_ps(m_new, _mm256_setzero_ps(), _mm256_cmp_ps(m_new, ninf, _CMP_EQ_OQ));
     const __m256 cr = exp2_ps(_mm256_sub_ps(m_old, m_sub));
     __m256 sum = _mm256_setzero_ps();
     for (int64_t j = 0; j < nk; ++j) {
-      const __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_sub));
+      __m256 p = exp2_ps(_mm256_sub_ps(_mm256_loadu_ps(st + j * kBQ + i), m_sub));
+      if (kBf16) p = round_bf16_ps(p);
       _mm256_storeu_ps(st + j * kBQ + i, p);
       sum = _mm256_add_ps(sum, p);
     }
@@ -173,7 +182,10 @@ struct Kernel {
   static void scores(const float* qt, int64_t dh, const float* k, int64_t k_ld, int64_t nk, int64_t ncol, float* st) {
     for (int64_t i0 = 0; i0 < ncol; i0 += 16) score_rows(qt + i0, dh, k, k_ld, nk, st + i0);
   }
-  static constexpr auto softmax_columns = avx2::softmax_columns;
+  template <bool kBf16>
+  static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr, float scale) {
+    avx2::softmax_columns<kBf16>(st, nk, ncol, m, l, corr, scale);
+  }
   static void scale_row(float* o, int64_t n, float f) {
     const __m256 vf = _mm256_set1_ps(f);
     for (int64_t d = 0; d < n; d += 8) _mm256_storeu_ps(o + d, _mm256_mul_ps(_mm256_loadu_ps(o + d), vf));
@@ -209,8 +221,8 @@ int64_t attention_tile_queries() { return kBQ; }
 
 int64_t attention_tile_workspace(int64_t dh) { return attention_detail::tile_workspace<Kernel>(dh); }
 
-void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work) {
-  attention_detail::attention_tile<Kernel>(a, b, h, q0, nq, work);
+void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work, bool bf16) {
+  attention_detail::attention_tile<Kernel>(a, b, h, q0, nq, work, bf16);
 }
 
 }  // namespace egopd::avx2

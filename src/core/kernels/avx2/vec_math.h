@@ -118,6 +118,14 @@ static inline __m256 x_sigmoid_ps(__m256 x, float k) {
 }
 static inline __m256 silu_ps(__m256 x) { return x_sigmoid_ps(x, 1.0f); }
 
+// x rounded to the nearest bfloat16 (ties to even), as float32; x finite (Precision::Bf16's attention weights).
+static inline __m256 round_bf16_ps(__m256 x) {
+  const __m256i u = _mm256_castps_si256(x);
+  const __m256i odd = _mm256_and_si256(_mm256_srli_epi32(u, 16), _mm256_set1_epi32(1));
+  const __m256i r = _mm256_add_epi32(_mm256_add_epi32(u, _mm256_set1_epi32(0x7fff)), odd);
+  return _mm256_castsi256_ps(_mm256_and_si256(r, _mm256_set1_epi32(int(0xffff0000u))));
+}
+
 static inline float hsum_ps(__m256 v) {
   __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
   s = _mm_add_ps(s, _mm_movehl_ps(s, s));

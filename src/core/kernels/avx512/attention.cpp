@@ -6,11 +6,12 @@
 //  * P·V in 6-query x 64-channel micro-tiles (24 accumulators), the last channel vector masked.
 #include <cstdint>
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
+#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16,avx2,fma,f16c")
 #include <immintrin.h>
 
 #include "core/kernels/attention.h"
 #include "core/kernels/attention_tile.h"
+#include "core/kernels/gemm_internal.h"
 #include "core/kernels/avx512/vec_math.h"
 
 namespace egopd::avx512 {
@@ -123,13 +124,21 @@ void pv_rows(const float* pt, int64_t nk, const float* v, int64_t v_ld, int64_t 
   }
 }
 
-// Online softmax of one key tile down each column (16 queries per vector): st holds S^T on entry and P^T on exit;
-// m (running max, log2 domain) and l (running sum) are updated; corr receives each column's rescale factor.
-void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr) {
-  const __m512 ninf = _mm512_set1_ps(-__builtin_inff());
+// Online softmax of one key tile down each column (16 queries per vector): st holds the scores on entry (times
+// `scale`, the log2-domain factor not folded into the queries) and P^T on exit; m (running max, log2 domain) and l
+// (running sum) are updated; corr receives each column's rescale factor. kBf16 (Precision::Bf16, attention.h): the
+// running max is an integer and P is rounded to bfloat16.
+template <bool kBf16>
+void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr, float scale) {
+  const __m512 ninf = _mm512_set1_ps(-__builtin_inff()), vscale = _mm512_set1_ps(scale);
   for (int64_t i = 0; i < ncol; i += 16) {
     __m512 mx = ninf;
-    for (int64_t j = 0; j < nk; ++j) mx = _mm512_max_ps(mx, _mm512_loadu_ps(st + j * kBQ + i));
+    for (int64_t j = 0; j < nk; ++j) {
+      __m512 s = _mm512_loadu_ps(st + j * kBQ + i);
+      if (kBf16) _mm512_storeu_ps(st + j * kBQ + i, s = _mm512_mul_ps(s, vscale));
+      mx = _mm512_max_ps(mx, s);
+    }
+    if (kBf16) mx = _mm512_roundscale_ps(mx, _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC);
     const __m512 m_old = _mm512_loadu_ps(m + i);
     const __m512 m_new = _mm512_max_ps(m_old, mx);
     // A column with no visible key yet keeps m = -inf; subtract 0 instead so exp2(-inf - 0) = 0, not NaN.
@@ -137,7 +146,8 @@ void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, fl
     const __m512 cr = exp2_ps(_mm512_sub_ps(m_old, m_sub));
     __m512 sum = _mm512_setzero_ps();
     for (int64_t j = 0; j < nk; ++j) {
-      const __m512 p = exp2_ps(_mm512_sub_ps(_mm512_loadu_ps(st + j * kBQ + i), m_sub));
+      __m512 p = exp2_ps(_mm512_sub_ps(_mm512_loadu_ps(st + j * kBQ + i), m_sub));
+      if (kBf16) p = round_bf16_ps(p);
       _mm512_storeu_ps(st + j * kBQ + i, p);
       sum = _mm512_add_ps(sum, p);
     }
@@ -154,7 +164,10 @@ struct Kernel {
     for (int64_t i0 = 0; i0 < ncol32; i0 += 32) score_rows<2>(qt + i0, dh, k, k_ld, nk, st + i0);
     if (ncol32 < ncol) score_rows<1>(qt + ncol32, dh, k, k_ld, nk, st + ncol32);
   }
-  static constexpr auto softmax_columns = avx512::softmax_columns;
+  template <bool kBf16>
+  static void softmax_columns(float* st, int64_t nk, int64_t ncol, float* m, float* l, float* corr, float scale) {
+    avx512::softmax_columns<kBf16>(st, nk, ncol, m, l, corr, scale);
+  }
   static void scale_row(float* o, int64_t n, float f) {
     const __m512 vf = _mm512_set1_ps(f);
     for (int64_t d = 0; d < n; d += 16) _mm512_storeu_ps(o + d, _mm512_mul_ps(_mm512_loadu_ps(o + d), vf));
@@ -166,14 +179,178 @@ struct Kernel {
   }
 };
 
+// ---- Precision::Bf16 on CPUs with AVX512-BF16 -------------------------------------------------------------------
+// The same flow with both products on vdpbf16ps (lane += a.lo * b.lo + a.hi * b.hi, exact products summed in
+// float32), 32-bit slots holding bfloat16 pairs:
+//  * K rows as pairs along channels, kb[key][d/2] (converted once per call by bf16_prepare);
+//  * the query tile as pairs along channels, qp[d/2][query];
+//  * P^T (rounded to bfloat16 by the softmax) as pairs along keys, in place in st (to_bf16_pairs);
+//  * V as pairs along keys, vp[key/2][channel] (once per call, rows padded to 16 channels).
+// Scores come out unscaled: the softmax multiplies them by c (c * bf16(q) would round twice).
+
+// bf16 bits of 16 floats (nearest even), in the low half of each 32-bit lane. x finite.
+inline __m512i bf16_lo16(__m512 x) {
+  const __m512i u = _mm512_castps_si512(x);
+  const __m512i r = _mm512_add_epi32(_mm512_add_epi32(u, _mm512_set1_epi32(0x7fff)),
+                                     _mm512_and_si512(_mm512_srli_epi32(u, 16), _mm512_set1_epi32(1)));
+  return _mm512_srli_epi32(r, 16);
+}
+
+// dst[p] = bf16(x[2p]) | bf16(x[2p + 1]) << 16 for p < (n + 1) / 2 (x[n] = 0).
+inline void row_to_pairs(const float* x, int64_t n, uint32_t* dst) {
+  for (int64_t d = 0; d < n; d += 32) {
+    const __m512i lo = bf16_lo16(_mm512_maskz_loadu_ps(lanes(n - d), x + d));
+    const __m512i hi = bf16_lo16(_mm512_maskz_loadu_ps(lanes(n - d - 16 > 0 ? n - d - 16 : 0), x + d + 16));
+    const __m256i p0 = _mm512_cvtepi32_epi16(lo), p1 = _mm512_cvtepi32_epi16(hi);  // 16 bf16 each, in order
+    const int64_t pairs = ((n - d < 32 ? n - d : 32) + 1) / 2;
+    _mm512_mask_storeu_epi32(dst + d / 2, tail_mask16(pairs), _mm512_inserti64x4(_mm512_castsi256_si512(p0), p1, 1));
+  }
+}
+
+// acc[r][q] (+)= sum over the n slots j of a(r, j) . b[j][16q .. 16q + 16) for R rows, a(r, j) = a[r * a_rs + j]
+// broadcast; b rows at stride b_ld. vdpbf16ps as inline assembly (gemm.cpp says why).
+template <int R, int NC, bool kLoadC>
+inline void dp_tile(const uint32_t* a, int64_t a_rs, int64_t a_js, const uint32_t* b, int64_t b_ld, int64_t n,
+                    float* c, int64_t c_ld) {
+  __m512 acc[R][NC];
+#pragma GCC unroll 12
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q) acc[r][q] = kLoadC ? _mm512_loadu_ps(c + r * c_ld + q * 16) : _mm512_setzero_ps();
+  for (int64_t j = 0; j < n; ++j) {
+    __m512i bv[NC];
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q) bv[q] = _mm512_loadu_si512(b + j * b_ld + q * 16);
+#pragma GCC unroll 12
+    for (int r = 0; r < R; ++r) {
+      const __m512i av = _mm512_set1_epi32(int(a[r * a_rs + j * a_js]));
+#pragma GCC unroll 4
+      for (int q = 0; q < NC; ++q) acc[r][q] = _mm512_dpbf16_ps(acc[r][q], (__m512bh)av, (__m512bh)bv[q]);
+    }
+  }
+#pragma GCC unroll 12
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int q = 0; q < NC; ++q) _mm512_storeu_ps(c + r * c_ld + q * 16, acc[r][q]);
+}
+
+// Calls f.template operator()<R>(r0) for row blocks covering [0, rows): blocks of RMax, then one block of the rest.
+template <int RMax, int R = RMax, class F>
+inline void row_blocks(int64_t rows, F&& f) {
+  if constexpr (R == RMax) {
+    int64_t r = 0;
+    for (; r + RMax <= rows; r += RMax) f.template operator()<RMax>(r);
+    if (rows > r) row_blocks<RMax, RMax - 1>(rows - r, [&]<int T>(int64_t r0) { f.template operator()<T>(r + r0); });
+  } else if constexpr (R > 0) {
+    if (rows == R) f.template operator()<R>(0);
+    else row_blocks<RMax, R - 1>(rows, f);
+  }
+}
+
+struct Bf16Shape {
+  int64_t dh, dh2, dhv;  // channels, channel pairs, V row stride (channels padded to 16)
+};
+Bf16Shape bf16_shape(int64_t dh) { return {dh, (dh + 1) / 2, (dh + 15) / 16 * 16}; }
+
 }  // namespace
+
+int64_t attention_bf16_operand_slots(int64_t lk, int64_t dh) {
+  const Bf16Shape sh = bf16_shape(dh);
+  return lk * sh.dh2 + (lk + 1) / 2 * sh.dhv;
+}
+
+void attention_bf16_prepare(const AttentionArgs& a, int64_t b, int64_t h, uint32_t* ops) {
+  const Bf16Shape sh = bf16_shape(a.dh);
+  uint32_t* kb = ops;
+  uint32_t* vp = ops + a.lk * sh.dh2;
+  for (int64_t j = 0; j < a.lk; ++j) row_to_pairs(a.k + b * a.k_bs + j * a.k_ld + h * a.dh, a.dh, kb + j * sh.dh2);
+  for (int64_t jp = 0; 2 * jp < a.lk; ++jp) {
+    const float* v0 = a.v + b * a.v_bs + 2 * jp * a.v_ld + h * a.dh;
+    const bool has_odd = 2 * jp + 1 < a.lk;
+    for (int64_t d = 0; d < sh.dhv; d += 16) {
+      const __mmask16 m = lanes(a.dh - d > 0 ? a.dh - d : 0);
+      const __m512i lo = bf16_lo16(_mm512_maskz_loadu_ps(m, v0 + d));
+      const __m512i hi = has_odd ? bf16_lo16(_mm512_maskz_loadu_ps(m, v0 + a.v_ld + d)) : _mm512_setzero_si512();
+      _mm512_storeu_si512(vp + jp * sh.dhv + d, _mm512_or_si512(lo, _mm512_slli_epi32(hi, 16)));
+    }
+  }
+}
+
+int64_t attention_bf16_workspace(int64_t dh) {
+  const Bf16Shape sh = bf16_shape(dh);
+  return dh * kBQ + kBK * kBQ + kBQ * sh.dhv + 3 * kBQ;
+}
+
+void attention_tile_bf16(const AttentionArgs& a, const uint32_t* ops, int64_t b, int64_t h, int64_t q0, int64_t nq,
+                         float* work) {
+  const Bf16Shape sh = bf16_shape(a.dh);
+  const int64_t dh2 = sh.dh2, dhv = sh.dhv;
+  const int64_t ncol = (nq + 15) / 16 * 16;  // query columns computed (multiple of 16)
+  float* qt = work;                          // [dh][ncol] Q^T, zero beyond nq; then [dh2][ncol] its channel pairs
+  float* st = work + a.dh * kBQ;             // [kBK][kBQ] scores, then P^T, then its key pairs
+  float* o = st + kBK * kBQ;                 // [kBQ][dhv] unnormalised output
+  float* m = o + kBQ * dhv;                  // [kBQ] running max (log2 domain, integral)
+  float* l = m + kBQ;                        // [kBQ] running sum
+  float* corr = l + kBQ;                     // [kBQ] rescale factor of this key tile
+  const uint32_t* kb = ops;
+  const uint32_t* vp = ops + a.lk * dh2;
+
+  pack_avx2::transpose_scaled(a.q + b * a.q_bs + q0 * a.q_ld + h * a.dh, a.q_ld, nq, a.dh, 1.0f, qt, ncol, ncol);
+  gemm_detail::to_bf16_pairs_avx512(qt, int(ncol), a.dh);
+  const uint32_t* qp = reinterpret_cast<const uint32_t*>(qt);
+  for (int64_t i = 0; i < nq * dhv; ++i) o[i] = 0.0f;
+  for (int64_t i = 0; i < ncol; ++i) m[i] = -__builtin_inff(), l[i] = 0.0f;
+
+  const float c = a.scale * 1.44269504088896341f;
+  const int64_t kend = a.causal ? (a.lk < q0 + nq ? a.lk : q0 + nq) : a.lk;
+  for (int64_t k0 = 0; k0 < kend; k0 += kBK) {  // k0 even: key pairs never straddle tiles
+    const int64_t nk = kend - k0 < kBK ? kend - k0 : kBK, nkp = (nk + 1) / 2;
+    // S^T[key][query] = K · Q^T: key rows (12 at a time) by 32 or 16 query columns
+    for (int64_t i0 = 0; i0 < ncol; i0 += 32) {
+      const uint32_t* kr = kb + k0 * dh2;
+      if (ncol - i0 >= 32)
+        row_blocks<kSR>(nk, [&]<int R>(int64_t r) {
+          dp_tile<R, 2, false>(kr + r * dh2, dh2, 1, qp + i0, ncol, dh2, st + r * kBQ + i0, kBQ);
+        });
+      else
+        row_blocks<kSR>(nk, [&]<int R>(int64_t r) {
+          dp_tile<R, 1, false>(kr + r * dh2, dh2, 1, qp + i0, ncol, dh2, st + r * kBQ + i0, kBQ);
+        });
+    }
+    if (a.causal && k0 + nk - 1 > q0) {
+      for (int64_t j = 0; j < nk; ++j)
+        for (int64_t i = 0; i < ncol; ++i)
+          if (k0 + j > q0 + i) st[j * kBQ + i] = -__builtin_inff();
+    }
+    softmax_columns<true>(st, nk, ncol, m, l, corr, c);
+    if (k0 > 0)
+      for (int64_t i = 0; i < nq; ++i)
+        if (corr[i] != 1.0f) Kernel::scale_row(o + i * dhv, dhv, corr[i]);
+    gemm_detail::to_bf16_pairs_avx512(st, int(kBQ), nk);  // exact: P is already in bfloat16
+    // O[query][channel] += P · V: 6 query rows by 64 channels (the last block 16-48)
+    const uint32_t* pp = reinterpret_cast<const uint32_t*>(st);
+    const uint32_t* vt = vp + k0 / 2 * dhv;
+    row_blocks<kPR>(nq, [&]<int R>(int64_t r) {
+      int64_t d = 0;
+      for (; d + 64 <= dhv; d += 64) dp_tile<R, 4, true>(pp + r, 1, kBQ, vt + d, dhv, nkp, o + r * dhv + d, dhv);
+      switch ((dhv - d) / 16) {
+        case 3: dp_tile<R, 3, true>(pp + r, 1, kBQ, vt + d, dhv, nkp, o + r * dhv + d, dhv); break;
+        case 2: dp_tile<R, 2, true>(pp + r, 1, kBQ, vt + d, dhv, nkp, o + r * dhv + d, dhv); break;
+        case 1: dp_tile<R, 1, true>(pp + r, 1, kBQ, vt + d, dhv, nkp, o + r * dhv + d, dhv); break;
+        default: break;
+      }
+    });
+  }
+  float* out = a.out + b * a.out_bs + q0 * a.out_ld + h * a.dh;
+  for (int64_t i = 0; i < nq; ++i) Kernel::store_row(out + i * a.out_ld, o + i * dhv, a.dh, 1.0f / l[i]);
+}
 
 int64_t attention_tile_queries() { return kBQ; }
 
 int64_t attention_tile_workspace(int64_t dh) { return attention_detail::tile_workspace<Kernel>(dh); }
 
-void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work) {
-  attention_detail::attention_tile<Kernel>(a, b, h, q0, nq, work);
+void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, int64_t nq, float* work, bool bf16) {
+  attention_detail::attention_tile<Kernel>(a, b, h, q0, nq, work, bf16);
 }
 
 }  // namespace egopd::avx512

@@ -108,6 +108,14 @@ static inline __m512 x_sigmoid_ps(__m512 x, float k) {
 static inline __m512 silu_ps(__m512 x) { return x_sigmoid_ps(x, 1.0f); }
 
 // Horizontal reductions: the two 256-bit halves combined, then the AVX2 reduction.
+// x rounded to the nearest bfloat16 (ties to even), as float32; x finite.
+static inline __m512 round_bf16_ps(__m512 x) {
+  const __m512i u = _mm512_castps_si512(x);
+  const __m512i odd = _mm512_and_si512(_mm512_srli_epi32(u, 16), _mm512_set1_epi32(1));
+  const __m512i r = _mm512_add_epi32(_mm512_add_epi32(u, _mm512_set1_epi32(0x7fff)), odd);
+  return _mm512_castsi512_ps(_mm512_and_si512(r, _mm512_set1_epi32(int(0xffff0000u))));
+}
+
 static inline __m256 low_half(__m512 v) { return _mm512_castps512_ps256(v); }
 static inline __m256 high_half(__m512 v) { return _mm512_extractf32x8_ps(v, 1); }
 static inline float hsum_ps(__m512 v) { return hsum_ps(_mm256_add_ps(low_half(v), high_half(v))); }
