@@ -6,7 +6,7 @@
 //  * P·V in 6-query x 64-channel micro-tiles (24 accumulators), the last channel vector masked.
 #include <cstdint>
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16,avx2,fma,f16c")
+#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
 #include <immintrin.h>
 
 #include "core/kernels/attention.h"
@@ -182,19 +182,14 @@ struct Kernel {
 // ---- Precision::Bf16 on CPUs with AVX512-BF16 -------------------------------------------------------------------
 // The same flow with both products on vdpbf16ps (lane += a.lo * b.lo + a.hi * b.hi, exact products summed in
 // float32), 32-bit slots holding bfloat16 pairs:
-//  * K rows as pairs along channels, kb[key][d/2] (converted once per call by bf16_prepare);
+//  * K rows as pairs along channels, kb[key][d/2] (attention_bf16_prepare, once per call and head);
 //  * the query tile as pairs along channels, qp[d/2][query];
-//  * P^T (rounded to bfloat16 by the softmax) as pairs along keys, in place in st (to_bf16_pairs);
+//  * P^T (rounded to bfloat16 by the softmax) as pairs along keys, in place in st;
 //  * V as pairs along keys, vp[key/2][channel] (once per call, rows padded to 16 channels).
 // Scores come out unscaled: the softmax multiplies them by c (c * bf16(q) would round twice).
 
 // bf16 bits of 16 floats (nearest even), in the low half of each 32-bit lane. x finite.
-inline __m512i bf16_lo16(__m512 x) {
-  const __m512i u = _mm512_castps_si512(x);
-  const __m512i r = _mm512_add_epi32(_mm512_add_epi32(u, _mm512_set1_epi32(0x7fff)),
-                                     _mm512_and_si512(_mm512_srli_epi32(u, 16), _mm512_set1_epi32(1)));
-  return _mm512_srli_epi32(r, 16);
-}
+inline __m512i bf16_lo16(__m512 x) { return _mm512_srli_epi32(_mm512_castps_si512(round_bf16_ps(x)), 16); }
 
 // dst[p] = bf16(x[2p]) | bf16(x[2p + 1]) << 16 for p < (n + 1) / 2 (x[n] = 0).
 inline void row_to_pairs(const float* x, int64_t n, uint32_t* dst) {
@@ -207,11 +202,26 @@ inline void row_to_pairs(const float* x, int64_t n, uint32_t* dst) {
   }
 }
 
+// P^T's rows (stride kBQ, columns [0, ncol)) as key pairs in place: slot p * kBQ + i = P^T[2p][i] | P^T[2p + 1][i]
+// << 16 (P^T[nk][i] = 0). Pair p overwrites float row p <= 2p, whose values are loaded first.
+inline void key_pairs_in_place(float* st, int64_t nk, int64_t ncol) {
+  uint32_t* out = reinterpret_cast<uint32_t*>(st);
+  for (int64_t p = 0; 2 * p < nk; ++p)
+    for (int64_t i = 0; i < ncol; i += 16) {
+      const __m512i lo = bf16_lo16(_mm512_loadu_ps(st + 2 * p * kBQ + i));
+      const __m512i hi =
+          2 * p + 1 < nk ? bf16_lo16(_mm512_loadu_ps(st + (2 * p + 1) * kBQ + i)) : _mm512_setzero_si512();
+      _mm512_storeu_si512(out + p * kBQ + i, _mm512_or_si512(lo, _mm512_slli_epi32(hi, 16)));
+    }
+}
+
 // acc[r][q] (+)= sum over the n slots j of a(r, j) . b[j][16q .. 16q + 16) for R rows, a(r, j) = a[r * a_rs + j]
-// broadcast; b rows at stride b_ld. vdpbf16ps as inline assembly (gemm.cpp says why).
+// broadcast; b rows at stride b_ld. The intrinsic, not gemm.cpp's inline assembly: on these unrolled arrays GCC keeps
+// the accumulators in registers, and the assembly form made it spill them. The only function that needs
+// AVX512-BF16 (a call of its own from the rest, which runs on CPUs without it too).
 template <int R, int NC, bool kLoadC>
-inline void dp_tile(const uint32_t* a, int64_t a_rs, int64_t a_js, const uint32_t* b, int64_t b_ld, int64_t n,
-                    float* c, int64_t c_ld) {
+__attribute__((target("avx512bf16"))) void dp_tile(const uint32_t* a, int64_t a_rs, int64_t a_js, const uint32_t* b,
+                                                   int64_t b_ld, int64_t n, float* c, int64_t c_ld) {
   __m512 acc[R][NC];
 #pragma GCC unroll 12
   for (int r = 0; r < R; ++r)
@@ -326,7 +336,7 @@ void attention_tile_bf16(const AttentionArgs& a, const uint32_t* ops, int64_t b,
     if (k0 > 0)
       for (int64_t i = 0; i < nq; ++i)
         if (corr[i] != 1.0f) Kernel::scale_row(o + i * dhv, dhv, corr[i]);
-    gemm_detail::to_bf16_pairs_avx512(st, int(kBQ), nk);  // exact: P is already in bfloat16
+    key_pairs_in_place(st, nk, ncol);  // exact: P is already in bfloat16
     // O[query][channel] += P · V: 6 query rows by 64 channels (the last block 16-48)
     const uint32_t* pp = reinterpret_cast<const uint32_t*>(st);
     const uint32_t* vt = vp + k0 / 2 * dhv;
