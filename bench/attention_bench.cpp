@@ -22,6 +22,7 @@
 #include "core/kernels/attention.h"
 #include "core/kernels/elementwise.h"
 #include "core/kernels/fma_peak.h"
+#include "core/kernels/gemm.h"
 #include "core/kernels/layout.h"
 #include "core/kernels/norm.h"
 #include "core/threading.h"
@@ -77,10 +78,11 @@ void set_path(benchmark::State& state, int arg_index) {
 }
 
 // Self-attention on a fused [batch, tokens, 3*C] qkv buffer (as the U-Net's attention blocks produce it).
-// Args: batch, tokens, heads, dh, path.
-void BM_SelfAttention(benchmark::State& state) {
+// Args: batch, tokens, heads, dh, path; computed in `precision` (the Bf16 variants: --precision bf16's rule).
+void self_attention(benchmark::State& state, egopd::Precision precision) {
   const int64_t batch = state.range(0), tokens = state.range(1), heads = state.range(2), dh = state.range(3);
   set_path(state, 4);
+  egopd::set_precision(precision);
   const int64_t C = heads * dh;
   const std::vector<float> qkv = random_vector(batch * tokens * 3 * C, 1);
   std::vector<float> out(batch * tokens * C);
@@ -98,7 +100,10 @@ void BM_SelfAttention(benchmark::State& state) {
   });
   set_peak_counters(state, per_core);
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
+  egopd::set_precision(egopd::Precision::Fp32);
 }
+void BM_SelfAttention(benchmark::State& state) { self_attention(state, egopd::Precision::Fp32); }
+void BM_SelfAttentionBf16(benchmark::State& state) { self_attention(state, egopd::Precision::Bf16); }
 BENCHMARK(BM_SelfAttention)
     ->ArgNames({"batch", "tokens", "heads", "dh", "path"})
     ->Args({16, 1024, 5, 64, 1})   // spatial, 32x32 latent
@@ -119,9 +124,10 @@ BENCHMARK(BM_SelfAttention)
 
 // Temporal self-attention as the U-Net runs it: q, k, v are frame-major [frames, tokens, C], one sequence per
 // token (q_ld = tokens*C between frames, q_bs = C between sequences). Args: frames, tokens, heads, dh, path.
-void BM_TemporalAttention(benchmark::State& state) {
+void temporal_attention(benchmark::State& state, egopd::Precision precision) {
   const int64_t frames = state.range(0), tokens = state.range(1), heads = state.range(2), dh = state.range(3);
   set_path(state, 4);
+  egopd::set_precision(precision);
   const int64_t C = heads * dh, n = frames * tokens * C;
   const std::vector<float> q = random_vector(n, 11), k = random_vector(n, 12), v = random_vector(n, 13);
   std::vector<float> out(n);
@@ -138,7 +144,10 @@ void BM_TemporalAttention(benchmark::State& state) {
   });
   set_peak_counters(state, per_core);
   egopd::set_kernel_path(egopd::supported_kernel_paths().back());
+  egopd::set_precision(egopd::Precision::Fp32);
 }
+void BM_TemporalAttention(benchmark::State& state) { temporal_attention(state, egopd::Precision::Fp32); }
+void BM_TemporalAttentionBf16(benchmark::State& state) { temporal_attention(state, egopd::Precision::Bf16); }
 BENCHMARK(BM_TemporalAttention)
     ->ArgNames({"frames", "tokens", "heads", "dh", "path"})
     ->Args({16, 1024, 5, 64, 1})
@@ -146,6 +155,21 @@ BENCHMARK(BM_TemporalAttention)
     ->Args({16, 1024, 5, 64, 0})
     ->Args({16, 256, 10, 64, 1})
     ->Args({16, 256, 10, 64, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime();
+
+// --precision bf16 (attention.h): vdpbf16ps on AVX512-BF16, the float32 kernels on rounded copies elsewhere.
+BENCHMARK(BM_SelfAttentionBf16)
+    ->ArgNames({"batch", "tokens", "heads", "dh", "path"})
+    ->Args({16, 1024, 5, 64, 1})
+    ->Args({16, 1024, 5, 64, 2})
+    ->Args({1024, 16, 5, 64, 2})
+    ->Unit(benchmark::kMillisecond)
+    ->MeasureProcessCPUTime();
+BENCHMARK(BM_TemporalAttentionBf16)
+    ->ArgNames({"frames", "tokens", "heads", "dh", "path"})
+    ->Args({16, 1024, 5, 64, 1})
+    ->Args({16, 1024, 5, 64, 2})
     ->Unit(benchmark::kMillisecond)
     ->MeasureProcessCPUTime();
 
