@@ -164,12 +164,12 @@ void attention_blocked(const AttentionArgs& a, const TileKernel& kern, bool bf16
 // next unit's rows as attention_blocked does.
 void attention_avx512_bf16(const AttentionArgs& a) {
   const int64_t kTile = avx512::attention_tile_queries();
-  const int64_t tiles = (a.lq + kTile - 1) / kTile, heads = a.batch * a.heads, units = heads * tiles;
+  const int64_t tiles = (a.lq + kTile - 1) / kTile, nbh = a.batch * a.heads, units = nbh * tiles;
   const int64_t slots = avx512::attention_bf16_operand_slots(a.lk, a.dh);
   const bool shared = tiles > 1, prefetch = a.lq <= kTile && a.lk <= kTile;
   thread_local AlignedScratch buf;
-  uint32_t* const all_ops = shared ? reinterpret_cast<uint32_t*>(buf.get(size_t(heads * slots))) : nullptr;
-  const bool par = !omp_in_parallel() && units > 1 && a.lq * a.lk * a.dh * heads >= (1 << 16);
+  uint32_t* const all_ops = shared ? reinterpret_cast<uint32_t*>(buf.get(size_t(nbh * slots))) : nullptr;
+  const bool par = !omp_in_parallel() && units > 1 && a.lq * a.lk * a.dh * nbh >= (1 << 16);
 #pragma omp parallel if (par)
   {
     const std::shared_ptr<float[]> work =
@@ -177,7 +177,7 @@ void attention_avx512_bf16(const AttentionArgs& a) {
     uint32_t* const own_ops = reinterpret_cast<uint32_t*>(work.get() + avx512::attention_bf16_workspace(a.dh));
     if (shared) {
 #pragma omp for schedule(static)
-      for (int64_t bh = 0; bh < heads; ++bh)
+      for (int64_t bh = 0; bh < nbh; ++bh)
         avx512::attention_bf16_prepare(a, bh / a.heads, bh % a.heads, all_ops + bh * slots);
     }
 #pragma omp for schedule(dynamic, prefetch ? 16 : 1)
