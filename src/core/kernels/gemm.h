@@ -58,7 +58,8 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
 //         dequantised and requantised per block (exact where the block holds the channel's largest value).
 //         Native kernels: `vpdpbusd` on AVX512-VNNI, `vpmaddwd` on AVX2; elsewhere (portable, NEON, AVX-512
 //         without VNNI) an exact scalar emulation (the same numbers, slower than Fp32).
-// Attention scores, softmax, norms and activations stay float32 in every mode.
+// Norms, activations and the softmax stay float32 in every mode; attention's two products follow Bf16 (attention.h)
+// and stay float32 under Int8.
 enum class Precision : uint8_t { Fp32, Bf16, Int8 };
 constexpr int64_t kInt8Block = 512;                          // K block of one int8 scale (int32 sums stay exact)
 const char* precision_name(Precision p);                     // "fp32", "bf16", "int8"
