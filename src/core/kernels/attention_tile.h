@@ -29,6 +29,15 @@ int64_t tile_workspace(int64_t dh) {
   return dh * K::kBQ + K::kBK * K::kBQ + K::kBQ * padded<K>(dh) + 3 * K::kBQ;
 }
 
+// Causal mask of one score tile (rows: keys k0.., columns: queries q0.., row stride ld): key k0+j is hidden from
+// query q0+i when k0+j > q0+i.
+inline void mask_causal(float* st, int64_t ld, int64_t nk, int64_t ncol, int64_t k0, int64_t q0) {
+  if (k0 + nk - 1 <= q0) return;
+  for (int64_t j = 0; j < nk; ++j)
+    for (int64_t i = 0; i < ncol; ++i)
+      if (k0 + j > q0 + i) st[j * ld + i] = -__builtin_inff();
+}
+
 // Queries [q0, q0 + nq) (nq <= K::kBQ) of head h in batch b; work: tile_workspace<K>(dh) floats. bf16: the
 // emulated Precision::Bf16 softmax (q, k and v are already rounded copies).
 template <class K>
@@ -55,11 +64,7 @@ void attention_tile(const AttentionArgs& a, int64_t b, int64_t h, int64_t q0, in
   for (int64_t k0 = 0; k0 < kend; k0 += kBK) {
     const int64_t nk = kend - k0 < kBK ? kend - k0 : kBK;
     K::scores(qt, dh, k + k0 * a.k_ld, a.k_ld, nk, ncol, st);
-    if (a.causal && k0 + nk - 1 > q0) {  // key k0+j is hidden from query q0+i when k0+j > q0+i
-      for (int64_t j = 0; j < nk; ++j)
-        for (int64_t i = 0; i < ncol; ++i)
-          if (k0 + j > q0 + i) st[j * kBQ + i] = -__builtin_inff();
-    }
+    if (a.causal) mask_causal(st, kBQ, nk, ncol, k0, q0);
     if (bf16) K::template softmax_columns<true>(st, nk, ncol, m, l, corr, 1.0f);  // c is in qt already
     else K::template softmax_columns<false>(st, nk, ncol, m, l, corr, 1.0f);
     if (k0 > 0)  // rescale the accumulators of rows whose running max rose

@@ -191,6 +191,11 @@ struct Kernel {
 // bf16 bits of 16 floats (nearest even), in the low half of each 32-bit lane. x finite.
 inline __m512i bf16_lo16(__m512 x) { return _mm512_srli_epi32(_mm512_castps_si512(round_bf16_ps(x)), 16); }
 
+// 16 bfloat16 pairs: lane i = bf16(lo[i]) | bf16(hi[i]) << 16.
+inline __m512i bf16_pairs16(__m512 lo, __m512 hi) {
+  return _mm512_or_si512(bf16_lo16(lo), _mm512_slli_epi32(bf16_lo16(hi), 16));
+}
+
 // dst[p] = bf16(x[2p]) | bf16(x[2p + 1]) << 16 for p < (n + 1) / 2 (x[n] = 0).
 inline void row_to_pairs(const float* x, int64_t n, uint32_t* dst) {
   for (int64_t d = 0; d < n; d += 32) {
@@ -208,10 +213,8 @@ inline void key_pairs_in_place(float* st, int64_t nk, int64_t ncol) {
   uint32_t* out = reinterpret_cast<uint32_t*>(st);
   for (int64_t p = 0; 2 * p < nk; ++p)
     for (int64_t i = 0; i < ncol; i += 16) {
-      const __m512i lo = bf16_lo16(_mm512_loadu_ps(st + 2 * p * kBQ + i));
-      const __m512i hi =
-          2 * p + 1 < nk ? bf16_lo16(_mm512_loadu_ps(st + (2 * p + 1) * kBQ + i)) : _mm512_setzero_si512();
-      _mm512_storeu_si512(out + p * kBQ + i, _mm512_or_si512(lo, _mm512_slli_epi32(hi, 16)));
+      const __m512 hi = 2 * p + 1 < nk ? _mm512_loadu_ps(st + (2 * p + 1) * kBQ + i) : _mm512_setzero_ps();
+      _mm512_storeu_si512(out + p * kBQ + i, bf16_pairs16(_mm512_loadu_ps(st + 2 * p * kBQ + i), hi));
     }
 }
 
@@ -258,9 +261,9 @@ inline void row_blocks(int64_t rows, F&& f) {
 }
 
 struct Bf16Shape {
-  int64_t dh, dh2, dhv;  // channels, channel pairs, V row stride (channels padded to 16)
+  int64_t dh2, dhv;  // channel pairs, V row stride (channels padded to 16)
 };
-Bf16Shape bf16_shape(int64_t dh) { return {dh, (dh + 1) / 2, (dh + 15) / 16 * 16}; }
+Bf16Shape bf16_shape(int64_t dh) { return {(dh + 1) / 2, (dh + 15) / 16 * 16}; }
 
 }  // namespace
 
@@ -279,9 +282,8 @@ void attention_bf16_prepare(const AttentionArgs& a, int64_t b, int64_t h, uint32
     const bool has_odd = 2 * jp + 1 < a.lk;
     for (int64_t d = 0; d < sh.dhv; d += 16) {
       const __mmask16 m = lanes(a.dh - d > 0 ? a.dh - d : 0);
-      const __m512i lo = bf16_lo16(_mm512_maskz_loadu_ps(m, v0 + d));
-      const __m512i hi = has_odd ? bf16_lo16(_mm512_maskz_loadu_ps(m, v0 + a.v_ld + d)) : _mm512_setzero_si512();
-      _mm512_storeu_si512(vp + jp * sh.dhv + d, _mm512_or_si512(lo, _mm512_slli_epi32(hi, 16)));
+      const __m512 hi = has_odd ? _mm512_maskz_loadu_ps(m, v0 + a.v_ld + d) : _mm512_setzero_ps();
+      _mm512_storeu_si512(vp + jp * sh.dhv + d, bf16_pairs16(_mm512_maskz_loadu_ps(m, v0 + d), hi));
     }
   }
 }
@@ -327,11 +329,7 @@ void attention_tile_bf16(const AttentionArgs& a, const uint32_t* ops, int64_t b,
           dp_tile<R, 1, false>(kr + r * dh2, dh2, 1, qp + i0, ncol, dh2, st + r * kBQ + i0, kBQ);
         });
     }
-    if (a.causal && k0 + nk - 1 > q0) {
-      for (int64_t j = 0; j < nk; ++j)
-        for (int64_t i = 0; i < ncol; ++i)
-          if (k0 + j > q0 + i) st[j * kBQ + i] = -__builtin_inff();
-    }
+    if (a.causal) attention_detail::mask_causal(st, kBQ, nk, ncol, k0, q0);
     softmax_columns<true>(st, nk, ncol, m, l, corr, c);
     if (k0 > 0)
       for (int64_t i = 0; i < nq; ++i)
