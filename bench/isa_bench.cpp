@@ -1,7 +1,7 @@
 // Instruction-rate ceilings of the GEMM micro-kernels: each loop is the inner loop of one micro-kernel (its loads,
 // broadcasts and multiply-adds, operands in L1), one thread, no packing, no stores. It answers "how much faster can
 // int8 or bf16 be than float32 on this core at most" before any blocking is involved: e.g. the AVX2 int8 kernel's
-// vpmaddwd + vpaddd pairs against the AVX2 float32 kernel's FMAs. Counter GMAC/s: multiply-adds per second.
+// vpmaddubsw + vpmaddwd + vpaddd against the AVX2 float32 kernel's FMAs. Counter GMAC/s: multiply-adds per second.
 // Loops for instructions the CPU lacks are skipped with a message.
 #include <benchmark/benchmark.h>
 
@@ -58,7 +58,8 @@ __attribute__((target("avx2,fma"))) void fma_6x16(const int32_t* a, const int32_
   Y_LOOP("vmovups", ROWS6(FMA_ROW), 24)
 }
 
-// AVX2 int8, 6 x 16 tile (avx2/gemm.cpp): per pair of k, 2 B loads, 6 broadcasts, 12 vpmaddwd + 12 vpaddd.
+// AVX2 int8 on int16 pairs (exact for 8-bit operands; the AVX2 kernel before vpmaddubsw), 6 x 16 tile: per pair of
+// k, 2 B loads, 6 broadcasts, 12 vpmaddwd + 12 vpaddd.
 #define MADD_ROW(i, c0, c1)                               \
   "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"              \
   "vpmaddwd %%ymm12, %%ymm14, %%ymm15\n\t"                \
@@ -69,8 +70,8 @@ __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32
   Y_LOOP("vmovdqu", ROWS6(MADD_ROW), 24)
 }
 
-// For comparison only (not exact for two int8 operands of -127..127, whose pair sums saturate int16): u8 x s8
-// vpmaddubsw widened by vpmaddwd with ones, 5 x 16 tile, per 4 k.
+// u8 x s8 vpmaddubsw widened by vpmaddwd with ones, 5 x 16 tile (the ones in a register), per 4 k. Its int16 pair
+// sums saturate for two operands of -127..127; exact with B within -63..63.
 #define UBS_ROW(i, c0, c1)                               \
   "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"             \
   "vpmaddubsw %%ymm12, %%ymm14, %%ymm15\n\t"             \
@@ -81,6 +82,30 @@ __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int32_t* b) {
   Y_LOOP("vmovdqu", ROWS5(UBS_ROW), 20)
+}
+
+// The same with six rows, the AVX2 int8 kernel's loop (avx2/gemm.cpp): the ones come from memory (all 16 registers
+// hold accumulators, B, the broadcast and a product).
+alignas(32) const int16_t g_ones16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
+#define UBS_MEM_ROW(i, c0, c1)                           \
+  "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"             \
+  "vpmaddubsw %%ymm12, %%ymm14, %%ymm15\n\t"             \
+  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"               \
+  "vpaddd %%ymm15, %%ymm" #c0 ", %%ymm" #c0 "\n\t"       \
+  "vpmaddubsw %%ymm13, %%ymm14, %%ymm15\n\t"             \
+  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"               \
+  "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
+__attribute__((target("avx2"))) void vpmaddubsw_6x16(const int32_t* a, const int32_t* b) {
+  int64_t k = 256;
+  asm volatile("1:\n\t"
+               "vmovdqu (%[b]), %%ymm12\n\t"
+               "vmovdqu 32(%[b]), %%ymm13\n\t" ROWS6(UBS_MEM_ROW) "add $24, %[a]\n\t"
+               "add $64, %[b]\n\t"
+               "dec %[k]\n\t"
+               "jnz 1b"
+               : [a] "+r"(a), [b] "+r"(b), [k] "+r"(k)
+               : [ones] "m"(g_ones16)
+               : EGOPD_CLOBBER_YMM);
 }
 
 #define EGOPD_CLOBBER_ZMM                                                                                         \
@@ -125,6 +150,9 @@ void BM_avx2_vpmaddwd_6x16(benchmark::State& s) { run_loop(s, cpu().avx2_fma_f16
 void BM_avx2_vpmaddubsw_5x16(benchmark::State& s) {
   run_loop(s, cpu().avx2_fma_f16c, "needs AVX2", 320, vpmaddubsw_5x16);
 }
+void BM_avx2_vpmaddubsw_6x16(benchmark::State& s) {
+  run_loop(s, cpu().avx2_fma_f16c, "needs AVX2", 384, vpmaddubsw_6x16);
+}
 void BM_avx512_fma_12x32(benchmark::State& s) { run_loop(s, cpu().avx512, "needs AVX-512", 384, fma_12x32); }
 void BM_avx512_vpdpbusd_12x32(benchmark::State& s) {
   run_loop(s, cpu().avx512 && cpu().avx512_vnni, "needs AVX512-VNNI", 1536, vpdpbusd_12x32);
@@ -135,6 +163,7 @@ void BM_avx512_vdpbf16ps_12x32(benchmark::State& s) {
 BENCHMARK(BM_avx2_fma_6x16);
 BENCHMARK(BM_avx2_vpmaddwd_6x16);
 BENCHMARK(BM_avx2_vpmaddubsw_5x16);
+BENCHMARK(BM_avx2_vpmaddubsw_6x16);
 BENCHMARK(BM_avx512_fma_12x32);
 BENCHMARK(BM_avx512_vpdpbusd_12x32);
 BENCHMARK(BM_avx512_vdpbf16ps_12x32);

@@ -52,9 +52,10 @@ struct ConvCase {
 };
 
 // Precision::Int8 quantises each weight row and each input column (a pixel's receptive field) per K group with the
-// scale max|v| / 127 of that group, so each value moves by at most half a step, at most max|v| / 254 over the whole
-// row or column: |sum q_w q_x - sum w x| <= sum |w| X/254 + sum |x| W/254 + n W X/254^2 (W, X: the largest weight
-// of the row and input of the column, n terms). A wrong scale, rounding or offset breaks it by whole steps.
+// scale max|v| / L of that group (L = 127 for the weights, A; int8_b_levels() for the inputs, B), so each value
+// moves by at most half a step, at most max|v| / 2L over the whole row or column: |sum q_w q_x - sum w x| <=
+// sum |w| X/2Lx + sum |x| W/254 + n W X/(254 * 2Lx) (W, X: the largest weight of the row and input of the column,
+// n terms). A wrong scale, rounding or offset breaks it by whole steps.
 struct Int8Bound {
   double sum_w = 0, sum_x = 0, max_x = 0;
   int64_t terms = 0;
@@ -62,7 +63,8 @@ struct Int8Bound {
     sum_w += std::fabs(w), sum_x += std::fabs(x), max_x = std::max(max_x, std::fabs(x)), ++terms;
   }
   double bound(double max_w) const {
-    return (sum_w * max_x + sum_x * max_w) / 254.0 + double(terms) * max_w * max_x / (254.0 * 254.0);
+    const double x_step = 2.0 * int8_b_levels();
+    return sum_w * max_x / x_step + sum_x * max_w / 254.0 + double(terms) * max_w * max_x / (254.0 * x_step);
   }
 };
 

@@ -55,6 +55,7 @@ Precision precision() { return g_precision; }
 void set_precision(Precision p) { g_precision = p; }
 bool bf16_native() { return gemm_detail::gemm_path().micro_bf16 != nullptr; }
 const char* int8_kernel() { return gemm_detail::gemm_path().i8_kernel; }
+int int8_b_levels() { return gemm_detail::gemm_path().i8_b_levels; }
 
 namespace gemm_detail {
 
@@ -229,7 +230,7 @@ void run_gemm(const GemmJob& job) {
   // quarter of the bytes), and a B block spans about kInt8BBlockBytes: several times the columns of a float32
   // block, so A (packed and quantised once per column block and thread) is repacked that much less often.
   const int64_t b_panel_floats =
-      int8 ? ceil_div(kc_blk, i8_group) * i8_region(NR, i8_group, path.i8_per) : kc_slot * NR;
+      int8 ? ceil_div(kc_blk, i8_group) * i8_region(NR, i8_group) : kc_slot * NR;
   const int64_t kNcMax =
       int8 ? std::max<int64_t>(path.nc, kInt8BBlockBytes / (b_panel_floats * 4) * NR) : path.nc;
 
@@ -376,6 +377,10 @@ void run_gemm(const GemmJob& job) {
               const int mr = int(std::min<int64_t>(MR, mc - ir));
               if (bf16_pairs) {
                 job.a->pack_bf16_pairs(path, ic + ir, mr, k0, kc, panel);
+                continue;
+              }
+              if (int8 && job.a->direct && path.pack_a_i8) {
+                path.pack_a_i8(job.a->direct + (ic + ir) * job.a->lda + k0, job.a->lda, mr, kc, i8_group, panel);
                 continue;
               }
               job.a->pack(path, ic + ir, mr, k0, kc, panel);

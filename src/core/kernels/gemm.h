@@ -56,8 +56,11 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
 //         (float32 arithmetic; a lane whose max is below 1e-30 quantises to zeros). The int8 products are summed
 //         exactly in int32 and each block adds fma(float(sum), s_row * s_col, .) to the float32 result. q8 weights are
 //         dequantised and requantised per block (exact where the block holds the channel's largest value).
-//         Native kernels: `vpdpbusd` on AVX512-VNNI, `vpmaddwd` on AVX2; elsewhere (portable, NEON, AVX-512
-//         without VNNI) an exact scalar emulation (the same numbers, slower than Fp32).
+//         Native kernels: `vpdpbusd` on AVX512-VNNI, `vpmaddubsw` on AVX2; elsewhere (portable, NEON, AVX-512
+//         without VNNI) an exact scalar emulation (the same numbers as vpdpbusd, slower than Fp32). The AVX2 path
+//         quantises B to 63 levels instead (s = max|x| / 63, q within -63..63; int8_b_levels()): its unsigned x
+//         signed byte products are summed in pairs in int16, which 127 levels would overflow. B is a linear
+//         layer's weight and a convolution's input pixels; its error on that path is about twice as large.
 // Norms, activations and the softmax stay float32 in every mode; attention's two products follow Bf16 (attention.h)
 // and stay float32 under Int8.
 enum class Precision : uint8_t { Fp32, Bf16, Int8 };
@@ -69,8 +72,11 @@ Precision precision();
 void set_precision(Precision p);
 // Where Bf16 runs natively (vdpbf16ps) on the kernel path in use, or emulated.
 bool bf16_native();
-// How Int8 runs on the kernel path in use: "vpdpbusd (AVX512-VNNI)", "vpmaddwd (AVX2)" or "emulated".
+// How Int8 runs on the kernel path in use: "vpdpbusd (AVX512-VNNI)", "vpmaddubsw (AVX2, B in 63 levels)" or
+// "emulated".
 const char* int8_kernel();
+// Largest quantised magnitude of Int8's B operand on the kernel path in use: 127, or 63 on AVX2.
+int int8_b_levels();
 
 // Scalar reference of the epilogue activations (shared by kernels and tests).
 float apply_act(Act act, float x);

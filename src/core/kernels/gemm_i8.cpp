@@ -25,51 +25,40 @@ inline int32_t quantize(float x, float inv) {
 }
 
 // One group: `len` float rows at src into the region at dst (<= src in place, else apart). In place, slot (p, i)
-// is written after the floats it packs were read; those of later slots sit at rows >= per * p of src, past every
-// slot written so far. The scales and sums go last, at slot row ceil(group / per), once every float of the group
+// is written after the floats it packs were read; those of later slots sit at rows >= 4 * p of src, past every
+// slot written so far. The scales and sums go last, at slot row ceil(group / 4), once every float of the group
 // has been read.
-template <int per, typename Store>
+template <typename Store>
 void quantize_group(const float* src, float* dst, int width, int64_t len, int64_t group, Store store) {
   float scale[kMaxNR], inv[kMaxNR];
   int32_t sum[kMaxNR] = {};
   lane_scales(src, width, len, scale, inv);
-  for (int64_t p = 0; p < i8_slot_rows(len, per); ++p)
+  for (int64_t p = 0; p < i8_slot_rows(len); ++p)
     for (int i = 0; i < width; ++i) {
-      int32_t q[per];
-      for (int t = 0; t < per; ++t) {
-        const int64_t k = per * p + t;
+      int32_t q[4];
+      for (int t = 0; t < 4; ++t) {
+        const int64_t k = 4 * p + t;
         q[t] = k < len ? quantize(src[k * width + i], inv[i]) : 0;
         sum[i] += q[t];
       }
       store(dst + p * width + i, q);
     }
-  float* tail = dst + i8_slot_rows(group, per) * width;
+  float* tail = dst + i8_slot_rows(group) * width;
   std::memcpy(tail, scale, size_t(width) * sizeof(float));
   std::memcpy(tail + width, sum, size_t(width) * sizeof(int32_t));
-}
-
-template <int per, typename Store>
-void quantize_groups(const float* src, float* dst, int width, int64_t kc, int64_t group, Store store) {
-  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_group<per>(src + k0 * width, dst + g * i8_region(width, group, per), width,
-                        std::min(group, kc - k0), group, store);
 }
 
 }  // namespace
 
 void quantize_i8_quads(const float* src, float* dst, int width, int64_t kc, int64_t group, bool unsigned_bytes) {
-  quantize_groups<4>(src, dst, width, kc, group, [unsigned_bytes](float* slot, const int32_t* q) {
+  const auto store = [unsigned_bytes](float* slot, const int32_t* q) {
     uint8_t bytes[4];
     for (int t = 0; t < 4; ++t) bytes[t] = uint8_t(q[t] + (unsigned_bytes ? 128 : 0));
     std::memcpy(slot, bytes, 4);
-  });
-}
-
-void quantize_i8_pairs(const float* src, float* dst, int width, int64_t kc, int64_t group) {
-  quantize_groups<2>(src, dst, width, kc, group, [](float* slot, const int32_t* q) {
-    const int16_t v[2] = {int16_t(q[0]), int16_t(q[1])};
-    std::memcpy(slot, v, 4);
-  });
+  };
+  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
+    quantize_group(src + k0 * width, dst + g * i8_region(width, group), width, std::min(group, kc - k0), group,
+                   store);
 }
 
 template <int MR, int NR>
@@ -77,11 +66,11 @@ void microkernel_i8_portable(int64_t kc, const float* a_panel, int64_t, int64_t,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
   float sum[MR][NR] = {};
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
-    const I8Group pa(a_panel, MR, ep.i8_group, 4, g), pb(b_panel, NR, ep.i8_group, 4, g);
+    const I8Group pa(a_panel, MR, ep.i8_group, g), pb(b_panel, NR, ep.i8_group, g);
     const int8_t* a = reinterpret_cast<const int8_t*>(pa.slots);
     const int8_t* b = reinterpret_cast<const int8_t*>(pb.slots);
     int32_t acc[MR][NR] = {};
-    for (int64_t p = 0; p < i8_slot_rows(std::min(ep.i8_group, kc - k0), 4); ++p, a += 4 * MR, b += 4 * NR)
+    for (int64_t p = 0; p < i8_slot_rows(std::min(ep.i8_group, kc - k0)); ++p, a += 4 * MR, b += 4 * NR)
       for (int i = 0; i < mr; ++i)
         for (int j = 0; j < nr; ++j)
           for (int t = 0; t < 4; ++t) acc[i][j] += int32_t(a[4 * i + t]) * int32_t(b[4 * j + t]);

@@ -85,11 +85,13 @@ struct GemmPath {
   PackB pack_b_bf16 = nullptr;
   // Precision::Int8: quantise a packed float32 panel `src` of `width` (MR or NR) lanes and kc rows into `dst`
   // (src itself, in place, or a buffer apart), `group` rows at a time (see I8Group), A's and B's in the format
-  // micro_i8 multiplies (group: TileEpilogue::i8_group), i8_per values a 32-bit slot; i8_kernel says which
-  // instructions it uses.
+  // micro_i8 multiplies (group: TileEpilogue::i8_group); i8_kernel says which instructions it uses.
   void (*quantize_a_i8)(const float* src, float* dst, int width, int64_t kc, int64_t group) = nullptr;
   void (*quantize_b_i8)(const float* src, float* dst, int width, int64_t kc, int64_t group) = nullptr;
-  int i8_per = 4;
+  int i8_b_levels = 127;  // B's values lie within -i8_b_levels..i8_b_levels (A's within -127..127)
+  // quantize_a_i8's panel of mr float32 rows read in place (row i at a + i * lda), without a float panel between
+  // (null: pack_a, then quantize_a_i8).
+  void (*pack_a_i8)(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) = nullptr;
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
@@ -117,33 +119,33 @@ void pack_b_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const f
                         float* dst);
 // ---- Int8 panels (Precision::Int8) ----
 // A packed float32 panel of `width` lanes and kc rows is quantised (in place, or into a buffer apart) in groups of
-// `group` rows (gemm.h's K
-// blocks; the last group of K may be shorter). Group g becomes a region of i8_region(width, group, per) floats at
-// float g * i8_region(...): the lanes' int8 values, `per` (4: quads, 2: pairs) k at a time in one 32-bit slot per
-// lane, ceil(len/per) rows of `width` slots (values past the group's length are 0); then, at slot row
-// ceil(group/per), `width` float scales and `width` int32 sums of each lane's values. Quads hold bytes (byte t of
-// slot p*width + i is q(4p + t, i), offset by +128 when unsigned: vpdpbusd's unsigned operand); pairs hold int16
-// (low half q(2p, i), high half q(2p + 1, i): vpmaddwd's operands). A region never extends past the floats of its
-// group (group > 2 * per when there are several), so each group is written over floats already read.
-inline int64_t i8_slot_rows(int64_t len, int per) { return (len + per - 1) / per; }
-inline int64_t i8_region(int width, int64_t group, int per) { return (i8_slot_rows(group, per) + 2) * width; }
+// `group` rows (gemm.h's K blocks; the last group of K may be shorter). Group g becomes a region of
+// i8_region(width, group) floats at float g * i8_region(...): the lanes' int8 values as quads, four k at a time in
+// one 32-bit slot per lane (byte t of slot p*width + i is q(4p + t, i), offset by +128 in A's panels: the unsigned
+// operand of vpdpbusd and vpmaddubsw), ceil(len/4) rows of `width` slots (values past the group's length are 0);
+// then, at slot row ceil(group/4), `width` float scales and `width` int32 sums of each lane's values. A region never
+// extends past the floats of its group (group > 8 when there are several), so each group is written over floats
+// already read.
+inline int64_t i8_slot_rows(int64_t len) { return (len + 3) / 4; }
+inline int64_t i8_region(int width, int64_t group) { return (i8_slot_rows(group) + 2) * width; }
 struct I8Group {
   const int32_t* slots;
   const float* scale;
   const int32_t* sum;
-  I8Group(const float* panel, int width, int64_t group, int per, int64_t g) {
-    const float* base = panel + g * i8_region(width, group, per);
+  I8Group(const float* panel, int width, int64_t group, int64_t g) {
+    const float* base = panel + g * i8_region(width, group);
     slots = reinterpret_cast<const int32_t*>(base);
-    scale = base + i8_slot_rows(group, per) * width;
+    scale = base + i8_slot_rows(group) * width;
     sum = reinterpret_cast<const int32_t*>(scale + width);
   }
 };
 // Scale of one lane from its largest magnitude m, and the factor that quantises it (gemm.h: Precision::Int8).
-inline float i8_scale(float m) { return m > 1e-30f ? m / 127.0f : 0.0f; }
-inline float i8_inverse(float m) { return m > 1e-30f ? 127.0f / m : 0.0f; }
-// Scalar quantisers (any path) and the exact scalar micro-kernel of quad panels (signed bytes).
+// `levels` is the largest quantised magnitude: 127, or kI8LevelsAvx2B for B on the AVX2 path.
+inline float i8_scale(float m, int levels = 127) { return m > 1e-30f ? m / float(levels) : 0.0f; }
+inline float i8_inverse(float m, int levels = 127) { return m > 1e-30f ? float(levels) / m : 0.0f; }
+constexpr int kI8LevelsAvx2B = 63;  // vpmaddubsw's int16 pair sums of u8 x s8 stay exact (avx2/gemm.cpp)
+// Scalar quantiser (any path) and the exact scalar micro-kernel of quad panels (signed bytes).
 void quantize_i8_quads(const float* src, float* dst, int width, int64_t kc, int64_t group, bool unsigned_bytes);
-void quantize_i8_pairs(const float* src, float* dst, int width, int64_t kc, int64_t group);
 template <int MR, int NR>
 void microkernel_i8_portable(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
@@ -151,7 +153,10 @@ void quantize_i8_a_avx512_vnni(const float* src, float* dst, int width, int64_t 
 void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t kc, int64_t group);
 void microkernel_avx512_vnni(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
-void quantize_i8_pairs_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
+void quantize_i8_a_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
+void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
+template <int MR>
+void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst);
 void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 

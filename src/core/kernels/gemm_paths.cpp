@@ -50,7 +50,6 @@ GemmPath with_emulated_int8(GemmPath p) {
   p.quantize_a_i8 = p.quantize_b_i8 = [](const float* src, float* dst, int width, int64_t kc, int64_t group) {
     quantize_i8_quads(src, dst, width, kc, group, false);
   };
-  p.i8_per = 4;
   p.micro_i8 = microkernel_i8_portable<MR, NR>;
   p.i8_kernel = "emulated";
   return p;
@@ -74,10 +73,12 @@ const GemmPath& gemm_path(KernelPath which) {
                                 pack_im2col_shift_avx2, pack_a_temporal6_avx2},
                                false);
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx2;
-    p.quantize_a_i8 = p.quantize_b_i8 = quantize_i8_pairs_avx2;
-    p.i8_per = 2;
+    p.quantize_a_i8 = quantize_i8_a_avx2;
+    p.quantize_b_i8 = quantize_i8_b_avx2;
+      p.i8_b_levels = kI8LevelsAvx2B;
+    p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx2>;
     p.micro_i8 = microkernel_avx2_i8;
-    p.i8_kernel = "vpmaddwd (AVX2)";
+    p.i8_kernel = "vpmaddubsw (AVX2, B in 63 levels)";
     return p;
   }();
   static const GemmPath avx512 = [] {
@@ -97,6 +98,7 @@ const GemmPath& gemm_path(KernelPath which) {
       p.quantize_a_i8 = quantize_i8_a_avx512_vnni;
       p.quantize_b_i8 = quantize_i8_b_avx512_vnni;
       p.micro_i8 = microkernel_avx512_vnni;
+      p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx512>;  // the same unsigned quads of 127 levels
       p.i8_kernel = "vpdpbusd (AVX512-VNNI)";
     }
     return p;

@@ -166,9 +166,12 @@ void microkernel_avx2(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 #undef EGOPD_PREFETCH_B
 
 // ---- int8 (Precision::Int8) ------------------------------------------------------------------------------------
-// Pair panels (gemm_internal.h: I8Group) of int16 values within -127..127: vpmaddwd multiplies two k at once into
-// exact int32 sums and cannot saturate (vpmaddubsw's int16 pair sums could). Per pair two B loads and six A
-// broadcasts feed 12 vpmaddwd of 16 products each.
+// vpmaddubsw multiplies unsigned bytes by signed ones into int16 pair sums, which saturate past 2^15: with A's
+// bytes offset by +128 (0..255) and B's within -63..63 (gemm.h: the AVX2 path quantises B to 63 levels), a pair sum
+// stays within 2 * 255 * 63 = 32130, so vpmaddwd with ones widens exact sums of four products to int32. Quad
+// panels (gemm_internal.h: I8Group); each sum exceeds the true one by 128 * (B lane's sum), taken off before
+// scaling. Per quad two B loads and six A broadcasts feed 12 vpmaddubsw of 32 products each (2.0x the float32
+// FMA loop in isa_bench, against 1.35-1.45x for vpmaddwd on int16 pairs of 8-bit values).
 
 namespace {
 
@@ -178,10 +181,11 @@ inline __m256i lane_mask(int n) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp));
 }
 
-// One group of `len` float rows at src into its region at dst (<= src in place, else apart). In place, a chunk of
-// 8 lanes writes slot row p over float row <= p of the same lanes, after rows <= 2p + 1 of them were read (the
-// other chunk's lanes are never touched).
-void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_t group) {
+// One group of `len` float rows at src into its region at dst (<= src in place, else apart), values within
+// -kLevels..kLevels, bytes offset by +128 when kUnsigned. In place, a chunk of 8 lanes writes slot row p over float
+// row <= p of the same lanes, after rows <= 4p + 3 of them were read (the other chunk's lanes are never touched).
+template <bool kUnsigned, int kLevels>
+void quantize_quads(const float* src, float* dst, int width, int64_t len, int64_t group) {
   const int chunks = (width + 7) / 8;
   alignas(32) float mx[kMaxNR] = {}, scale[kMaxNR] = {}, inv[kMaxNR] = {};
   alignas(32) int32_t sums[kMaxNR] = {};
@@ -193,59 +197,129 @@ void quantize_pairs(const float* src, float* dst, int width, int64_t len, int64_
       v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_maskload_ps(src + k * width + 8 * ch, m)));
     _mm256_store_ps(mx + 8 * ch, v);
   }
-  for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i]), inv[i] = i8_inverse(mx[i]);
+  for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i], kLevels), inv[i] = i8_inverse(mx[i], kLevels);
   int32_t* out = reinterpret_cast<int32_t*>(dst);
-  const __m256i lo = _mm256_set1_epi32(-127), hi = _mm256_set1_epi32(127), half = _mm256_set1_epi32(0xffff);
+  const __m256i lo = _mm256_set1_epi32(-kLevels), hi = _mm256_set1_epi32(kLevels), byte = _mm256_set1_epi32(0xff);
   for (int ch = 0; ch < chunks; ++ch) {
     const __m256i m = lane_mask(width - 8 * ch);
     const __m256 f = _mm256_load_ps(inv + 8 * ch);
     __m256i sum = _mm256_setzero_si256();
-    for (int64_t p = 0; p < i8_slot_rows(len, 2); ++p) {
+    for (int64_t p = 0; p < i8_slot_rows(len); ++p) {
       __m256i packed = _mm256_setzero_si256();
-      for (int t = 0; t < 2 && 2 * p + t < len; ++t) {
-        const __m256 x = _mm256_maskload_ps(src + (2 * p + t) * width + 8 * ch, m);
+      for (int t = 0; t < 4 && 4 * p + t < len; ++t) {
+        const __m256 x = _mm256_maskload_ps(src + (4 * p + t) * width + 8 * ch, m);
         __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));  // nearest even, as nearbyint
         q = _mm256_min_epi32(_mm256_max_epi32(q, lo), hi);
         sum = _mm256_add_epi32(sum, q);
-        packed = _mm256_or_si256(packed, _mm256_slli_epi32(_mm256_and_si256(q, half), 16 * t));
+        packed = _mm256_or_si256(packed, _mm256_slli_epi32(_mm256_and_si256(q, byte), 8 * t));
       }
+      if (kUnsigned) packed = _mm256_xor_si256(packed, _mm256_set1_epi32(int(0x80808080u)));
       _mm256_maskstore_epi32(out + p * width + 8 * ch, m, packed);
     }
     _mm256_store_si256((__m256i*)(sums + 8 * ch), sum);
   }
-  float* tail = dst + i8_slot_rows(group, 2) * width;
+  float* tail = dst + i8_slot_rows(group) * width;
   for (int i = 0; i < width; ++i) tail[i] = scale[i];
   for (int i = 0; i < width; ++i) reinterpret_cast<int32_t*>(tail + width)[i] = sums[i];
 }
 
-}  // namespace
-
-void quantize_i8_pairs_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+template <bool kUnsigned, int kLevels>
+void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, int64_t group) {
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_pairs(src + k0 * width, dst + g * i8_region(width, group, 2), width, std::min(group, kc - k0), group);
+    quantize_quads<kUnsigned, kLevels>(src + k0 * width, dst + g * i8_region(width, group), width,
+                                       std::min(group, kc - k0), group);
 }
 
+// The quantised bytes of 8 floats x * f (nearest even, clamped to +-127), offset to unsigned, in the low 8 bytes;
+// `sum` gains their signed values.
+inline __m128i quantize8_unsigned(__m256 x, __m256 f, __m256i& sum) {
+  __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));
+  q = _mm256_min_epi32(_mm256_max_epi32(q, _mm256_set1_epi32(-127)), _mm256_set1_epi32(127));
+  sum = _mm256_add_epi32(sum, q);
+  const __m128i w = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));  // 8 x int16
+  return _mm_xor_si128(_mm_packs_epi16(w, w), _mm_set1_epi8(char(0x80)));
+}
+
+alignas(32) const int16_t kOnes16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
+
+}  // namespace
+
+void quantize_i8_a_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<true, 127>(src, dst, width, kc, group);
+}
+void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<false, kI8LevelsAvx2B>(src, dst, width, kc, group);
+}
+
+// A's panel straight from float32 rows (row i at a + i * lda), quantised as quantize_i8_a_avx2 quantises the packed
+// float panel (the same operations, so the same bytes), without the float panel between: each row's largest
+// magnitude over the group, then its bytes, one quad (4 k) to each slot of the row. Rows mr..MR - 1 and k past the
+// group's length quantise zeros.
+template <int MR>
+void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) {
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group) {
+    const int64_t len = std::min(group, kc - k0), slots = i8_slot_rows(len);
+    int32_t* out = reinterpret_cast<int32_t*>(dst + g * i8_region(MR, group));
+    float* tail = dst + g * i8_region(MR, group) + i8_slot_rows(group) * MR;
+    for (int i = 0; i < MR; ++i) {
+      int32_t total = 0;
+      float scale = 0.0f;
+      if (i >= mr) {
+        for (int64_t p = 0; p < slots; ++p) out[p * MR + i] = int32_t(0x80808080u);
+      } else {
+        const float* row = a + i * lda + k0;
+        __m256 v = _mm256_setzero_ps();
+        int64_t k = 0;
+        for (; k + 8 <= len; k += 8) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_loadu_ps(row + k)));
+        const __m256i tail_mask = lane_mask(int(len - k));
+        if (k < len) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_maskload_ps(row + k, tail_mask)));
+        const float m = vmath::hmax_ps(v);
+        scale = i8_scale(m);
+        const __m256 f = _mm256_set1_ps(i8_inverse(m));
+        __m256i sum = _mm256_setzero_si256();
+        alignas(16) int32_t quads[4];
+        for (k = 0; k < len; k += 8) {
+          const __m256 x = k + 8 <= len ? _mm256_loadu_ps(row + k) : _mm256_maskload_ps(row + k, tail_mask);
+          _mm_store_si128(reinterpret_cast<__m128i*>(quads), quantize8_unsigned(x, f, sum));
+          out[(k / 4) * MR + i] = quads[0];
+          if (k + 4 < len) out[(k / 4 + 1) * MR + i] = quads[1];
+        }
+        alignas(32) int32_t lanes[8];
+        _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum);
+        for (int32_t l : lanes) total += l;
+      }
+      tail[i] = scale;
+      reinterpret_cast<int32_t*>(tail + MR)[i] = total;
+    }
+  }
+}
+template void pack_a_i8_rows_avx2<kMrAvx2>(const float*, int64_t, int, int64_t, int64_t, float*);
+template void pack_a_i8_rows_avx2<kMrAvx512>(const float*, int64_t, int, int64_t, int64_t, float*);
+
 // All six rows at once: twelve accumulators (ymm0-11), two B vectors (ymm12-13), the A broadcast (ymm14) and a
-// product (ymm15) fill the 16 registers exactly, so the pair loop is assembly (with intrinsics GCC spilled half the
-// accumulators; three rows at a time re-read B and ran 1.1-1.2x slower). The int32 sums of a group go to `acc`
-// (row i at acc + 16 i).
+// product (ymm15) fill the 16 registers, so the ones of the widening come from memory and the quad loop is assembly
+// (with intrinsics GCC spilled accumulators; isa_bench: this 6 x 16 loop runs as fast as a 5 x 16 one with the ones
+// in a register). The int32 sums of a group go to `acc` (row i at acc + 16 i).
 #define EGOPD_ROW_ASM(i, c0, c1)                                    \
   "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"                        \
-  "vpmaddwd %%ymm12, %%ymm14, %%ymm15\n\t"                          \
+  "vpmaddubsw %%ymm12, %%ymm14, %%ymm15\n\t"                        \
+  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"                          \
   "vpaddd %%ymm15, %%ymm" #c0 ", %%ymm" #c0 "\n\t"                  \
-  "vpmaddwd %%ymm13, %%ymm14, %%ymm15\n\t"                          \
+  "vpmaddubsw %%ymm13, %%ymm14, %%ymm15\n\t"                        \
+  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"                          \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 #define EGOPD_STORE_ASM(i, c0, c1)                 \
   "vmovdqa %%ymm" #c0 ", " #i "*64(%[acc])\n\t"    \
   "vmovdqa %%ymm" #c1 ", " #i "*64+32(%[acc])\n\t"
-// Every path adds a group as sum = fma(float(int32 sum), s_row * s_col, sum): explicit, so that no path's
-// compiler contraction makes the results differ.
+// Every path adds a group as sum = fma(float(int32 sum - correction), s_row * s_col, sum): explicit, so that no
+// path's compiler contraction makes the results differ.
 #define EGOPD_SCALE(i)                                                                                        \
   {                                                                                                           \
     float* row = sum + (i) * NR;                                                                              \
     const __m256 sa = _mm256_broadcast_ss(pa.scale + (i));                                                    \
-    const __m256i s0 = _mm256_load_si256((const __m256i*)(acc + (i) * NR));                                   \
-    const __m256i s1 = _mm256_load_si256((const __m256i*)(acc + (i) * NR + 8));                               \
+    const __m256i s0 = _mm256_sub_epi32(_mm256_load_si256((const __m256i*)(acc + (i) * NR)), corr0);          \
+    const __m256i s1 = _mm256_sub_epi32(_mm256_load_si256((const __m256i*)(acc + (i) * NR + 8)), corr1);      \
     _mm256_store_ps(row, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s0), _mm256_mul_ps(sa, sb0), _mm256_load_ps(row))); \
     _mm256_store_ps(row + 8, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s1), _mm256_mul_ps(sa, sb1), _mm256_load_ps(row + 8))); \
   }
@@ -256,9 +330,8 @@ void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, con
   alignas(32) float sum[MR * NR] = {};  // float sums of the groups (gemm_internal.h: I8Group)
   alignas(32) int32_t acc[MR * NR];
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
-    const I8Group pa(a_panel, MR, ep.i8_group, 2, g), pb(b_panel, NR, ep.i8_group, 2, g);
-    const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
-    int64_t pairs = i8_slot_rows(std::min(ep.i8_group, kc - k0), 2);
+    const I8Group pa(a_panel, MR, ep.i8_group, g), pb(b_panel, NR, ep.i8_group, g);
+    int64_t quads = i8_slot_rows(std::min(ep.i8_group, kc - k0));
     const int32_t* a = pa.slots;
     const int32_t* b = pb.slots;
     asm volatile(
@@ -272,7 +345,7 @@ void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, con
         "1:\n\t"
         "vmovdqu (%[b]), %%ymm12\n\t"
         "vmovdqu 32(%[b]), %%ymm13\n\t"
-        "prefetcht0 1024(%[b])\n\t"  // 16 pair rows ahead, as the float32 kernel's kPrefetchB
+        "prefetcht0 1024(%[b])\n\t"  // 16 quad rows ahead, as the float32 kernel's kPrefetchB
         EGOPD_ROW_ASM(0, 0, 1) EGOPD_ROW_ASM(1, 2, 3) EGOPD_ROW_ASM(2, 4, 5)
         EGOPD_ROW_ASM(3, 6, 7) EGOPD_ROW_ASM(4, 8, 9) EGOPD_ROW_ASM(5, 10, 11)
         "add $24, %[a]\n\t"
@@ -282,10 +355,14 @@ void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, con
         "2:\n\t"
         EGOPD_STORE_ASM(0, 0, 1) EGOPD_STORE_ASM(1, 2, 3) EGOPD_STORE_ASM(2, 4, 5)
         EGOPD_STORE_ASM(3, 6, 7) EGOPD_STORE_ASM(4, 8, 9) EGOPD_STORE_ASM(5, 10, 11)
-        : [a] "+r"(a), [b] "+r"(b), [n] "+r"(pairs)
-        : [acc] "r"(acc)
+        : [a] "+r"(a), [b] "+r"(b), [n] "+r"(quads)
+        : [acc] "r"(acc), [ones] "m"(kOnes16)
         : "cc", "memory", "xmm0", "xmm1", "xmm2", "xmm3", "xmm4", "xmm5", "xmm6", "xmm7", "xmm8", "xmm9", "xmm10",
           "xmm11", "xmm12", "xmm13", "xmm14", "xmm15");
+    // Each sum exceeds the true one by 128 * (the B lane's sum): A's bytes are offset to unsigned.
+    const __m256i corr0 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)pb.sum), 7);
+    const __m256i corr1 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)(pb.sum + 8)), 7);
+    const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
     EGOPD_SCALE(0) EGOPD_SCALE(1) EGOPD_SCALE(2) EGOPD_SCALE(3) EGOPD_SCALE(4) EGOPD_SCALE(5)
   }
   const auto row = [&](int i, int half) { return _mm256_load_ps(sum + i * NR + 8 * half); };

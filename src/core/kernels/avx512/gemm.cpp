@@ -169,7 +169,7 @@ __attribute__((always_inline)) inline void quantize_quads(const float* src, floa
   int32_t* out = reinterpret_cast<int32_t*>(dst);
   const __m512i lo = _mm512_set1_epi32(-127), hi = _mm512_set1_epi32(127), byte = _mm512_set1_epi32(0xff);
   __m512i sum[2] = {_mm512_setzero_si512(), _mm512_setzero_si512()};
-  for (int64_t p = 0; p < i8_slot_rows(len, 4); ++p)
+  for (int64_t p = 0; p < i8_slot_rows(len); ++p)
     for (int ch = 0; ch < chunks; ++ch) {
       const __mmask16 m = lanes(width - 16 * ch);
       const __m512 f = _mm512_load_ps(inv + 16 * ch);
@@ -184,7 +184,7 @@ __attribute__((always_inline)) inline void quantize_quads(const float* src, floa
       if (kUnsigned) packed = _mm512_xor_si512(packed, _mm512_set1_epi32(int(0x80808080u)));
       _mm512_mask_storeu_epi32(out + p * width + 16 * ch, m, packed);
     }
-  float* tail = dst + i8_slot_rows(group, 4) * width;
+  float* tail = dst + i8_slot_rows(group) * width;
   for (int ch = 0; ch < chunks; ++ch) {
     const __mmask16 m = lanes(width - 16 * ch);
     _mm512_mask_storeu_ps(tail + 16 * ch, m, _mm512_load_ps(scale + 16 * ch));
@@ -195,7 +195,7 @@ __attribute__((always_inline)) inline void quantize_quads(const float* src, floa
 template <bool kUnsigned>
 void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, int64_t group) {
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group)
-    quantize_quads<kUnsigned>(src + k0 * width, dst + g * i8_region(width, group, 4), width,
+    quantize_quads<kUnsigned>(src + k0 * width, dst + g * i8_region(width, group), width,
                               std::min(group, kc - k0), group);
 }
 
@@ -230,11 +230,11 @@ __attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, c
   // Float sums of the groups (gemm_internal.h: I8Group) in `sum`, the int32 ones of a group in registers.
   alignas(64) float sum[MR * NR];
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
-    const I8Group pa(a_panel, MR, ep.i8_group, 4, g), pb(b_panel, NR, ep.i8_group, 4, g);
+    const I8Group pa(a_panel, MR, ep.i8_group, g), pb(b_panel, NR, ep.i8_group, g);
     const int32_t* a = pa.slots;
     const int32_t* b = pb.slots;
     EGOPD_ROWS(EGOPD_DECLARE_INT)
-    EGOPD_SLOT_LOOP(i8_slot_rows(std::min(ep.i8_group, kc - k0), 4))
+    EGOPD_SLOT_LOOP(i8_slot_rows(std::min(ep.i8_group, kc - k0)))
     // Each sum exceeds the true one by 128 * (the B lane's sum): A's bytes are offset to unsigned.
     const __m512i corr0 = _mm512_slli_epi32(_mm512_loadu_si512(pb.sum), 7);
     const __m512i corr1 = _mm512_slli_epi32(_mm512_loadu_si512(pb.sum + 16), 7);
