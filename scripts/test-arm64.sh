@@ -62,8 +62,10 @@ fi
 cmake --build $build -j"$jobs" "${targets[@]}"
 built=$(date +%s)
 
-# The emulated CPU: qemu's default ("max") has every ARMv8.x extension; the kernels use only ARMv8.0-A. The binaries
-# run through the wrappers the build generates (qemu-aarch64 with the extracted libraries on its library path).
+# The emulated CPU: qemu's default ("max") has every ARMv8.x extension; the kernels use only ARMv8.0-A but for the
+# int8 kernel's ARMv8.2 dot product (sdot), taken where the CPU reports it: the neon run tests it, the portable run
+# the scalar emulation CPUs without it use. The binaries run through the wrappers the build generates (qemu-aarch64
+# with the extracted libraries on its library path).
 export OMP_WAIT_POLICY=passive
 version=$($build/tests/emulated/egopd --version)
 echo "== $version =="

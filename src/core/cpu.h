@@ -22,7 +22,7 @@ struct CpuInfo {
   bool avx512_vnni = false;  // vpdpbusd
   bool neon = false;         // AArch64 Advanced SIMD (every AArch64 CPU)
   bool neon_fp16 = false;    // ARMv8.2 FP16 arithmetic (HWCAP fphp + asimdhp); reported only
-  bool neon_dotprod = false; // ARMv8.2 dot product (HWCAP asimddp); reported only
+  bool neon_dotprod = false; // ARMv8.2 dot product (HWCAP asimddp): the int8 kernel (sdot)
   // Per-core data caches in bytes (0 when unknown; the kernels then assume 32 KiB / 512 KiB / 16 MiB).
   int64_t l1d = 0, l2 = 0, l3 = 0;
   // The sizes the kernels block for: the measured ones, or those assumed when unknown.

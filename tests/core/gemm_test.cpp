@@ -439,6 +439,21 @@ TEST(GemmInt8Test, ThreadsAndPathsAgreeBitForBit) {
   set_num_threads(saved);
 }
 
+// Each path multiplies int8 with the instruction the CPU has: the checks above then test that kernel (under
+// qemu-aarch64, whose CPU has the dot product, the sdot one).
+TEST(GemmInt8Test, KernelFollowsTheCpu) {
+  const CpuInfo& ci = cpu_info();
+  for (KernelPath p : supported_kernel_paths()) {
+    test::KernelPathGuard guard(p);
+    std::string want = "emulated";
+    if (p == KernelPath::Avx512 && ci.avx512_vnni) want = "vpdpbusd (AVX512-VNNI)";
+    if (p == KernelPath::Avx2) want = "vpmaddubsw (AVX2, B in 63 levels)";
+    if (p == KernelPath::Neon && ci.neon_dotprod) want = "sdot (ARMv8.2 dot product)";
+    EXPECT_EQ(std::string(int8_kernel()), want) << kernel_path_name(p);
+    EXPECT_EQ(int8_b_levels(), p == KernelPath::Avx2 ? 63 : 127) << kernel_path_name(p);
+  }
+}
+
 TEST(PrecisionTest, NamesParseBack) {
   for (Precision p : {Precision::Fp32, Precision::Bf16, Precision::Int8}) {
     Precision q = p == Precision::Fp32 ? Precision::Bf16 : Precision::Fp32;

@@ -56,8 +56,9 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
 //         (float32 arithmetic; a lane whose max is below 1e-30 quantises to zeros). The int8 products are summed
 //         exactly in int32 and each block adds fma(float(sum), s_row * s_col, .) to the float32 result. q8 weights are
 //         dequantised and requantised per block (exact where the block holds the channel's largest value).
-//         Native kernels: `vpdpbusd` on AVX512-VNNI, `vpmaddubsw` on AVX2; elsewhere (portable, NEON, AVX-512
-//         without VNNI) an exact scalar emulation (the same numbers as vpdpbusd, slower than Fp32). The AVX2 path
+//         Native kernels: `vpdpbusd` on AVX512-VNNI, `sdot` on NEON with the ARMv8.2 dot product, `vpmaddubsw` on
+//         AVX2; elsewhere (portable, NEON without it, AVX-512 without VNNI) an exact scalar emulation (the same
+//         numbers as vpdpbusd and sdot, slower than Fp32). The AVX2 path
 //         quantises B to 63 levels instead (s = max|x| / 63, q within -63..63; int8_b_levels()): its unsigned x
 //         signed byte products are summed in pairs in int16, which 127 levels would overflow. B is a linear
 //         layer's weight and a convolution's input pixels; its error on that path is about twice as large.
@@ -72,8 +73,8 @@ Precision precision();
 void set_precision(Precision p);
 // Where Bf16 runs natively (vdpbf16ps) on the kernel path in use, or emulated.
 bool bf16_native();
-// How Int8 runs on the kernel path in use: "vpdpbusd (AVX512-VNNI)", "vpmaddubsw (AVX2, B in 63 levels)" or
-// "emulated".
+// How Int8 runs on the kernel path in use: "vpdpbusd (AVX512-VNNI)", "vpmaddubsw (AVX2, B in 63 levels)",
+// "sdot (ARMv8.2 dot product)" or "emulated".
 const char* int8_kernel();
 // Largest quantised magnitude of Int8's B operand on the kernel path in use: 127, or 63 on AVX2.
 int int8_b_levels();

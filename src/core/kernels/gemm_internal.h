@@ -110,6 +110,8 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
                         int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c, int64_t ldc,
                       int mr, int nr, const TileEpilogue& ep);
+// The NEON path's 8 x 12 tile from its float sums (row stride 16), full tiles with NEON, partial ones scalar.
+void store_tile_neon(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void microkernel_avx512_bf16(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void to_bf16_pairs_avx512(float* panel, int width, int64_t kc);
@@ -155,6 +157,8 @@ void microkernel_avx512_vnni(int64_t kc, const float* a, int64_t a_rs, int64_t a
                              int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 void quantize_i8_a_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
 void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group);
+void microkernel_neon_sdot(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
+                           int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst);
 void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,

@@ -114,6 +114,10 @@ const GemmPath& gemm_path(KernelPath which) {
                       false));
     // NEON is the AArch64 baseline: the compiler vectorises the portable packer with it.
     p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;
+    if (cpu_info().neon_dotprod) {  // the emulation's quads and numbers, multiplied by sdot
+      p.micro_i8 = microkernel_neon_sdot;
+      p.i8_kernel = "sdot (ARMv8.2 dot product)";
+    }
     return p;
   }();
   if (which == KernelPath::Neon) return neon;

@@ -87,6 +87,14 @@ void microkernel_neon(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, co
 
 #undef EGOPD_FMLA_ROW
 
+void store_tile_neon(const float* sum, float* c, int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
+  if (mr < MR || nr < NR) return store_tile_scalar(sum, c, ldc, mr, nr, ep);
+  for (int i = 0; i < MR; ++i) {
+    float32x4_t row[3] = {vld1q_f32(sum + i * 16), vld1q_f32(sum + i * 16 + 4), vld1q_f32(sum + i * 16 + 8)};
+    store_row(c + i * ldc, row, i, ep);
+  }
+}
+
 // ---- packing --------------------------------------------------------------------------------------------------
 
 namespace {
