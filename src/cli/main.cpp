@@ -180,8 +180,10 @@ int run(int argc, char** argv) {
   }
   if (rest[0] == "--version") {
     const CpuInfo& ci = cpu_info();
-    std::printf("egopd %s (kernels: %s, %s; conv: %s; cpu: %s)\n", EGOPD_VERSION, kernel_path_name(kernel_path()),
-                kernel_path_features(kernel_path()).c_str(), conv_algo_name(conv_algo()),
+    // What --precision bf16 and int8 run on this path (int8's numbers depend on it: 63 levels for B on AVX2).
+    std::printf("egopd %s (kernels: %s, %s; conv: %s; bf16: %s; int8: %s; cpu: %s)\n", EGOPD_VERSION,
+                kernel_path_name(kernel_path()), kernel_path_features(kernel_path()).c_str(),
+                conv_algo_name(conv_algo()), bf16_native() ? "vdpbf16ps" : "emulated", int8_kernel(),
                 ci.description().c_str());
     return 0;
   }
