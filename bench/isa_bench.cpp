@@ -70,31 +70,25 @@ __attribute__((target("avx2"))) void vpmaddwd_6x16(const int32_t* a, const int32
   Y_LOOP("vmovdqu", ROWS6(MADD_ROW), 24)
 }
 
-// u8 x s8 vpmaddubsw widened by vpmaddwd with ones, 5 x 16 tile (the ones in a register), per 4 k. Its int16 pair
-// sums saturate for two operands of -127..127; exact with B within -63..63.
-#define UBS_ROW(i, c0, c1)                               \
+// u8 x s8 vpmaddubsw widened by vpmaddwd with `ones`, per 4 k. Its int16 pair sums saturate for two operands of
+// -127..127; exact with B within -63..63. 5 x 16 with the ones in a register (ymm11); 6 x 16, the AVX2 int8
+// kernel's loop (avx2/gemm.cpp), with them from memory (all 16 registers hold accumulators, B, the broadcast and a
+// product).
+#define UBS_ROW_WITH(ones, i, c0, c1)                    \
   "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"             \
   "vpmaddubsw %%ymm12, %%ymm14, %%ymm15\n\t"             \
-  "vpmaddwd %%ymm15, %%ymm11, %%ymm15\n\t"               \
+  "vpmaddwd " ones ", %%ymm15, %%ymm15\n\t"              \
   "vpaddd %%ymm15, %%ymm" #c0 ", %%ymm" #c0 "\n\t"       \
   "vpmaddubsw %%ymm13, %%ymm14, %%ymm15\n\t"             \
-  "vpmaddwd %%ymm15, %%ymm11, %%ymm15\n\t"               \
+  "vpmaddwd " ones ", %%ymm15, %%ymm15\n\t"              \
   "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
+#define UBS_ROW(i, c0, c1) UBS_ROW_WITH("%%ymm11", i, c0, c1)
+#define UBS_MEM_ROW(i, c0, c1) UBS_ROW_WITH("%[ones]", i, c0, c1)
 __attribute__((target("avx2"))) void vpmaddubsw_5x16(const int32_t* a, const int32_t* b) {
   Y_LOOP("vmovdqu", ROWS5(UBS_ROW), 20)
 }
 
-// The same with six rows, the AVX2 int8 kernel's loop (avx2/gemm.cpp): the ones come from memory (all 16 registers
-// hold accumulators, B, the broadcast and a product).
 alignas(32) const int16_t g_ones16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
-#define UBS_MEM_ROW(i, c0, c1)                           \
-  "vpbroadcastd " #i "*4(%[a]), %%ymm14\n\t"             \
-  "vpmaddubsw %%ymm12, %%ymm14, %%ymm15\n\t"             \
-  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"               \
-  "vpaddd %%ymm15, %%ymm" #c0 ", %%ymm" #c0 "\n\t"       \
-  "vpmaddubsw %%ymm13, %%ymm14, %%ymm15\n\t"             \
-  "vpmaddwd %[ones], %%ymm15, %%ymm15\n\t"               \
-  "vpaddd %%ymm15, %%ymm" #c1 ", %%ymm" #c1 "\n\t"
 __attribute__((target("avx2"))) void vpmaddubsw_6x16(const int32_t* a, const int32_t* b) {
   int64_t k = 256;
   asm volatile("1:\n\t"

@@ -379,13 +379,12 @@ void run_gemm(const GemmJob& job) {
                 job.a->pack_bf16_pairs(path, ic + ir, mr, k0, kc, panel);
                 continue;
               }
-              if (int8 && job.a->direct && path.pack_a_i8) {
-                path.pack_a_i8(job.a->direct + (ic + ir) * job.a->lda + k0, job.a->lda, mr, kc, i8_group, panel);
+              if (int8) {
+                job.a->pack_i8(path, ic + ir, mr, k0, kc, i8_group, panel);
                 continue;
               }
               job.a->pack(path, ic + ir, mr, k0, kc, panel);
               if (bf16) round_to_bf16(panel, kc * MR);
-              if (int8) path.quantize_a_i8(panel, panel, MR, kc, i8_group);
             }
           if (glu) {
             glu_pairs(pm_lo, pm_hi, ic, mc, te, bias_col);
@@ -438,6 +437,12 @@ void OperandA::pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_
 void OperandA::pack_bf16_pairs(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const {
   if (!path.pack_a_bf16) return ASource::pack_bf16_pairs(path, m0, mr, k0, kc, dst);
   pack_operand(path.pack_a_bf16, op, 0, !op.trans, m0, mr, k0, kc, dst);
+}
+
+void OperandA::pack_i8(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, int64_t group,
+                       float* dst) const {
+  if (!direct || !path.pack_a_i8) return ASource::pack_i8(path, m0, mr, k0, kc, group, dst);
+  path.pack_a_i8(direct + m0 * lda + k0, lda, mr, kc, group, dst);
 }
 
 // B(k, n) = data[k*ld + n], or data[n*ld + k] when trans.

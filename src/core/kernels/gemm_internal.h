@@ -182,6 +182,12 @@ struct ASource {
     pack(path, m0, mr, k0, kc, dst);
     path.to_bf16_pairs(dst, path.mr, kc);
   }
+  // The same panel quantised for Precision::Int8 (GemmPath::quantize_a_i8, groups of `group` rows).
+  virtual void pack_i8(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, int64_t group,
+                       float* dst) const {
+    pack(path, m0, mr, k0, kc, dst);
+    path.quantize_a_i8(dst, dst, path.mr, kc, group);
+  }
 };
 
 // Source of the B operand: `segments` independent column ranges of width seg_cols that share A (frames of a
@@ -223,6 +229,8 @@ struct OperandA : ASource {
   explicit OperandA(const Operand& o);
   void pack(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
   void pack_bf16_pairs(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, float* dst) const override;
+  void pack_i8(const GemmPath& path, int64_t m0, int mr, int64_t k0, int64_t kc, int64_t group,
+               float* dst) const override;
 };
 struct OperandB : BSource {
   Operand op;

@@ -181,6 +181,14 @@ inline __m256i lane_mask(int n) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp));
 }
 
+// 8 floats x * f as int32, nearest even (as nearbyint), clamped to +-levels; `sum` gains them.
+inline __m256i quantize8(__m256 x, __m256 f, int levels, __m256i& sum) {
+  __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));
+  q = _mm256_min_epi32(_mm256_max_epi32(q, _mm256_set1_epi32(-levels)), _mm256_set1_epi32(levels));
+  sum = _mm256_add_epi32(sum, q);
+  return q;
+}
+
 // One group of `len` float rows at src into its region at dst (<= src in place, else apart), values within
 // -kLevels..kLevels, bytes offset by +128 when kUnsigned. In place, a chunk of 8 lanes writes slot row p over float
 // row <= p of the same lanes, after rows <= 4p + 3 of them were read (the other chunk's lanes are never touched).
@@ -199,7 +207,7 @@ void quantize_quads(const float* src, float* dst, int width, int64_t len, int64_
   }
   for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i], kLevels), inv[i] = i8_inverse(mx[i], kLevels);
   int32_t* out = reinterpret_cast<int32_t*>(dst);
-  const __m256i lo = _mm256_set1_epi32(-kLevels), hi = _mm256_set1_epi32(kLevels), byte = _mm256_set1_epi32(0xff);
+  const __m256i byte = _mm256_set1_epi32(0xff);
   for (int ch = 0; ch < chunks; ++ch) {
     const __m256i m = lane_mask(width - 8 * ch);
     const __m256 f = _mm256_load_ps(inv + 8 * ch);
@@ -208,9 +216,7 @@ void quantize_quads(const float* src, float* dst, int width, int64_t len, int64_
       __m256i packed = _mm256_setzero_si256();
       for (int t = 0; t < 4 && 4 * p + t < len; ++t) {
         const __m256 x = _mm256_maskload_ps(src + (4 * p + t) * width + 8 * ch, m);
-        __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));  // nearest even, as nearbyint
-        q = _mm256_min_epi32(_mm256_max_epi32(q, lo), hi);
-        sum = _mm256_add_epi32(sum, q);
+        const __m256i q = quantize8(x, f, kLevels, sum);
         packed = _mm256_or_si256(packed, _mm256_slli_epi32(_mm256_and_si256(q, byte), 8 * t));
       }
       if (kUnsigned) packed = _mm256_xor_si256(packed, _mm256_set1_epi32(int(0x80808080u)));
@@ -233,9 +239,7 @@ void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, i
 // The quantised bytes of 8 floats x * f (nearest even, clamped to +-127), offset to unsigned, in the low 8 bytes;
 // `sum` gains their signed values.
 inline __m128i quantize8_unsigned(__m256 x, __m256 f, __m256i& sum) {
-  __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));
-  q = _mm256_min_epi32(_mm256_max_epi32(q, _mm256_set1_epi32(-127)), _mm256_set1_epi32(127));
-  sum = _mm256_add_epi32(sum, q);
+  const __m256i q = quantize8(x, f, 127, sum);
   const __m128i w = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));  // 8 x int16
   return _mm_xor_si128(_mm_packs_epi16(w, w), _mm_set1_epi8(char(0x80)));
 }
