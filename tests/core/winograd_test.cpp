@@ -85,12 +85,40 @@ struct WinoCase {
   Act act = Act::None;
   bool accumulate = false;
   bool bf16 = false;  // Precision::Bf16: the reference convolves the input and weights rounded to bfloat16
+  bool int8 = false;  // Precision::Int8: the reference convolves them quantised (quantize_groups)
+  // The first input channel and weight tap of every group but the first scaled by 64 (F32 weights): moving a group
+  // boundary moves a spike into another group, or values into a spike's, and changes their quantisation steps.
+  bool spike = false;
 };
 
 std::string describe(const WinoCase& c, WinogradTile t) {
   return std::string(winograd_tile_name(t)) + " n" + std::to_string(c.n) + " " + std::to_string(c.cin) + "->" +
          std::to_string(c.cout) + " " + std::to_string(c.h) + "x" + std::to_string(c.w) + " " + dtype_name(c.dt) +
-         (c.bf16 ? " bf16" : "");
+         (c.bf16 ? " bf16" : "") + (c.int8 ? " int8" : "");
+}
+
+// The balanced groups of at most kInt8Block that split n values: their length (gemm.h, written out plainly).
+int64_t group_length(int64_t n) {
+  const int64_t groups = std::max<int64_t>(1, (n + kInt8Block - 1) / kInt8Block);
+  return (n + groups - 1) / groups;
+}
+
+// Precision::Int8 on Winograd (winograd.h), written out plainly: the values v[at(l, k)] of each lane l, over each
+// group of its k in [0, n), get m = max|v|, q = nearbyint(v * (127 / m)) in float32 clamped to +-127, and become
+// q * m / 127 (zeros when m <= 1e-30).
+template <class At>
+void quantize_groups(std::vector<double>& v, int64_t lanes, int64_t n, At at) {
+  const int64_t len = group_length(n);
+  for (int64_t l = 0; l < lanes; ++l)
+    for (int64_t k0 = 0; k0 < n; k0 += len) {
+      const int64_t k1 = std::min(n, k0 + len);
+      float m = 0.0f;
+      for (int64_t k = k0; k < k1; ++k) m = std::max(m, std::fabs(float(v[at(l, k)])));
+      const float inv = m > 1e-30f ? 127.0f / m : 0.0f;
+      const double scale = m > 1e-30f ? double(m / 127.0f) : 0.0;
+      for (int64_t k = k0; k < k1; ++k)
+        v[at(l, k)] = double(std::clamp(std::nearbyint(float(v[at(l, k)]) * inv), -127.0f, 127.0f)) * scale;
+    }
 }
 
 // The output channels checked: all of a small layer, else a spread over register tiles and blocks.
@@ -120,9 +148,30 @@ struct Reference {
     x = random_vec(size_t(c.n * c.cin * c.h * c.w), rng);
     bias = random_vec(size_t(c.cout), rng);
     y0 = random_vec(size_t(c.n * c.cout * c.h * c.w), rng);
+    if (c.spike) {
+      const int64_t hw = c.h * c.w, K = c.cin * 9, gx = group_length(c.cin), gw = group_length(K);
+      for (size_t i = 0; i < x.size(); ++i)
+        if (const int64_t ch = int64_t(i) / hw % c.cin; ch > 0 && ch % gx == 0) x[i] *= 64.0f;
+      for (size_t i = 0; i < wt.f32.size(); ++i)
+        if (const int64_t k = int64_t(i) % K; k > 0 && k % gw == 0) wt.value[i] = wt.f32[i] = 64.0f * wt.f32[i];
+    }
     for (float v : x) xv.push_back(c.bf16 ? round_bf16(v) : v);
     for (double v : wt.value) wv.push_back(c.bf16 ? round_bf16(v) : v);
+    if (c.int8) {
+      const int64_t hw = c.h * c.w, K = c.cin * 9;
+      // the input per pixel (frame f, pixel p: lane f * hw + p) over its channels; the weights per output channel
+      // over its cin * 9 taps
+      quantize_groups(xv, c.n * hw, c.cin, [&](int64_t l, int64_t ch) {
+        return size_t((l / hw * c.cin + ch) * hw + l % hw);
+      });
+      quantize_groups(wv, c.cout, K, [&](int64_t o, int64_t k) { return size_t(o * K + k); });
+    }
     chans = checked_channels(c.cout);
+    compute_exact();
+  }
+
+  // exact from xv and wv (again after a test changes them).
+  void compute_exact() {
     exact.assign(size_t(c.n) * chans.size() * size_t(c.h * c.w), 0.0);
     for (int64_t f = 0; f < c.n; ++f)
       for (size_t ci = 0; ci < chans.size(); ++ci)
@@ -224,7 +273,7 @@ int check_against(const Reference& R, WinogradTile t, Run run, double* worst_rat
 int run_wino(const WinoCase& c, WinogradTile t, uint32_t seed) {
   const Reference R(c, seed);
   return check_against(R, t, [&](std::vector<float>& y) {
-    const test::PrecisionGuard precision(test::precision_of(c.bf16, false));
+    const test::PrecisionGuard precision(test::precision_of(c.bf16, c.int8));
     conv2d_winograd(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), c.bias ? R.bias.data() : nullptr, c.cin,
                     c.cout, y.data(), c.act, c.accumulate, t);
   });
@@ -366,9 +415,69 @@ TEST_P(WinogradTest, Bf16RoundsTheInputsThenTransformsInFloat32) {
                 0)
           << conv_algo_name(algo);
     }
-    const test::PrecisionGuard int8(Precision::Int8);  // int8 quantises inside the direct convolution
-    EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), "direct");
   }
+}
+
+// Precision::Int8: the input quantised per pixel and group of channels, the weights per output channel and group
+// of taps, both to 127 levels on every path, then float32 Winograd: the reference convolves the quantised values
+// exactly, under the float32 bound (a wrong scale or group moves values by whole quantisation steps, ~1e-2 relative,
+// far outside it). Two groups of channels and eleven of taps (cin = 600: groups of 300 channels, of 491 taps that
+// split input channels; once with spikes at the groups' starts, so that their scales differ), odd sizes, one frame, tile tails, rows past cout, every weight dtype, epilogues; and
+// conv2d's dispatch under int8.
+TEST_P(WinogradTest, Int8QuantisesThenTransformsInFloat32) {
+  uint32_t seed = 150;
+  for (WinogradTile t : kTiles) {
+    for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8}) {
+      EXPECT_EQ(run_wino({2, 19, 21, 9, 7, dt, true, Act::None, false, false, true}, t, seed++), 0);
+      EXPECT_EQ(run_wino({1, 40, 30, 12, 70, dt, true, Act::SiLU, true, false, true}, t, seed++), 0);
+    }
+    EXPECT_EQ(run_wino({1, 5, 7, 1, 1, DType::F32, true, Act::None, false, false, true}, t, seed++), 0);
+    EXPECT_EQ(run_wino({3, 17, 13, 17, 13, DType::F16, false, Act::None, false, false, true}, t, seed++), 0);
+    EXPECT_EQ(run_wino({1, 9, 200, 5, 5, DType::F16, true, Act::GELU, false, false, true}, t, seed++), 0);
+    EXPECT_EQ(run_wino({1, 600, 14, 6, 7, DType::F16, true, Act::None, true, false, true}, t, seed++), 0);
+    EXPECT_EQ(run_wino({2, 600, 13, 5, 9, DType::F32, true, Act::None, false, false, true, true}, t, seed++), 0);
+  }
+  // A frame of zeros but one pixel: every other pixel's scale is 0 and quantises to zeros.
+  {
+    const WinoCase c{1, 8, 6, 8, 8, DType::F32, true, Act::None, false, false, true};
+    Reference R(c, seed++);
+    std::fill(R.x.begin(), R.x.end(), 0.0f);
+    R.x[size_t(3 * 64 + 27)] = 0.75f;
+    std::fill(R.xv.begin(), R.xv.end(), 0.0);
+    R.xv[size_t(3 * 64 + 27)] = 0.75;  // its own maximum: exact
+    R.compute_exact();
+    EXPECT_EQ(check_against(R, WinogradTile::F4x4, [&](std::vector<float>& y) {
+                const test::PrecisionGuard int8(Precision::Int8);
+                conv2d_winograd(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), c.cin, c.cout,
+                                y.data(), c.act, c.accumulate, WinogradTile::F4x4);
+              }),
+              0);
+  }
+  // conv2d: forced Winograd always; auto where Winograd wins in float32 and the frames are at least the path's
+  // GemmPath::i8_winograd_min_frame (on the others the int8 direct convolution is faster).
+  const WinoCase c{16, 24, 20, 17, 18, DType::F16, true, Act::None, false, false, true};
+  const Reference R(c, 199);
+  const Conv2dGeom g{c.cin, c.cout, 3, 3, 1, 1, 1, 1};
+  const test::PrecisionGuard int8(Precision::Int8);
+  const int64_t min_frame = gemm_detail::gemm_path().i8_winograd_min_frame;
+  for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
+    set_conv_algo(algo);
+    const bool winograd = algo == ConvAlgo::Winograd || min_frame <= 17;
+    EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), winograd ? "winograd F(4x4,3x3)" : "direct") << conv_algo_name(algo);
+    if (winograd)
+      EXPECT_EQ(check_against(R, WinogradTile::F4x4, [&](std::vector<float>& y) {
+                  conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
+                }),
+                0)
+          << conv_algo_name(algo);
+  }
+  set_conv_algo(ConvAlgo::Auto);
+  if (min_frame > 0 && min_frame < 4096) {
+    EXPECT_EQ(conv2d_algorithm(g, 16, min_frame - 1, 64), "direct");
+    EXPECT_NE(conv2d_algorithm(g, 16, min_frame, 64), "direct");
+  }
+  set_conv_algo(ConvAlgo::Direct);
+  EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), "direct");
 }
 
 // conv2d takes Winograd when told to (and for 3x3 stride-1 pad-1 only); Auto takes it on large layers.

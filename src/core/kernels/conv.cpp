@@ -104,12 +104,14 @@ bool same_3x3(const Conv2dGeom& g) {
 }
 
 bool use_winograd(const Conv2dGeom& g, int64_t n, int64_t h, int64_t w) {
-  const bool same3x3 = same_3x3(g);
+  const ConvAlgo algo = same_3x3(g) ? conv_algo() : ConvAlgo::Direct;
+  if (algo != ConvAlgo::Auto) return algo == ConvAlgo::Winograd;
   // Winograd's arithmetic is float32. Under bf16 it rounds its inputs as the direct convolution does, and beats the
   // bfloat16 direct convolution on every layer measured (AMD EPYC Zen 5 class, 2 threads, vdpbf16ps: 1280 ch 8x8
-  // 1.2-1.4x, 640 16x16 1.2x, 128 ch 256x256 2x); int8 quantises inside the direct path.
-  const ConvAlgo algo = same3x3 && precision() != Precision::Int8 ? conv_algo() : ConvAlgo::Direct;
-  return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && winograd_wins(g.cin, g.cout, n, h, w));
+  // 1.2-1.4x, 640 16x16 1.2x, 128 ch 256x256 2x). Under int8 it quantises its inputs, and beats the int8 direct
+  // convolution where the path has no fast int8 dot product, on frames of the path's minimum size (GemmPath).
+  if (!winograd_wins(g.cin, g.cout, n, h, w)) return false;
+  return precision() != Precision::Int8 || std::min(h, w) >= gemm_detail::gemm_path().i8_winograd_min_frame;
 }
 
 }  // namespace

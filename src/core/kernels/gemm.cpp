@@ -192,7 +192,7 @@ KPasses k_passes(const GemmPath& path, int64_t K) {
   const bool int8 = precision() == Precision::Int8 && K > 0;
   // Int8: K in balanced quantisation groups of at most kInt8Block (gemm.h), a K pass of up to kInt8GroupsPerPass
   // whole groups (the micro-kernel sums the groups of a pass in registers, so C is read and written once per pass).
-  const int64_t i8_group = int8 ? ceil_div(K, ceil_div(K, kInt8Block)) : 0;
+  const int64_t i8_group = int8 ? int8_group(K) : 0;
   // Bf16 pairs take half the bytes of float32: twice the depth per K pass fills the same cache, and C is read and
   // written half as often.
   const bool bf16_pairs = precision() == Precision::Bf16 && path.micro_bf16;

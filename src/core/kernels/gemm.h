@@ -62,10 +62,18 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
 //         quantises B to 63 levels instead (s = max|x| / 63, q within -63..63; int8_b_levels()): its unsigned x
 //         signed byte products are summed in pairs in int16, which 127 levels would overflow. B is a linear
 //         layer's weight and a convolution's input pixels; its error on that path is about twice as large.
+//         3x3 convolutions that run Winograd under Int8 (winograd.h: forced, or --conv auto on the AVX2 path) quantise
+//         with the same rule but per input pixel, and multiply in float32.
 // Norms, activations and the softmax stay float32 in every mode; attention's two products follow Bf16 (attention.h)
 // and stay float32 under Int8.
 enum class Precision : uint8_t { Fp32, Bf16, Int8 };
 constexpr int64_t kInt8Block = 512;                          // K block of one int8 scale (int32 sums stay exact)
+// The balanced quantisation group of a K of `k` (k > 0): ceil(k / ceil(k / kInt8Block)), group g covering
+// [g * group, (g + 1) * group).
+inline int64_t int8_group(int64_t k) {
+  const int64_t groups = (k + kInt8Block - 1) / kInt8Block;
+  return (k + groups - 1) / groups;
+}
 const char* precision_name(Precision p);                     // "fp32", "bf16", "int8"
 bool parse_precision(const char* name, Precision* out);      // false for an unknown name
 Precision precision();

@@ -94,6 +94,11 @@ struct GemmPath {
   void (*pack_a_i8)(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) = nullptr;
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
+  // Under Int8 and --conv auto, 3x3 convolutions take Winograd on quantised operands (winograd.h) where Winograd
+  // wins in float32 and the frames are at least this wide and high (conv.cpp). Only where it beats the int8 direct
+  // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and
+  // their exact emulation share.
+  int64_t i8_winograd_min_frame = INT64_MAX;
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
   int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
   int64_t nc = 2048;  // columns of a B block shared by the team

@@ -75,10 +75,13 @@ const GemmPath& gemm_path(KernelPath which) {
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx2;
     p.quantize_a_i8 = quantize_i8_a_avx2;
     p.quantize_b_i8 = quantize_i8_b_avx2;
-      p.i8_b_levels = kI8LevelsAvx2B;
+    p.i8_b_levels = kI8LevelsAvx2B;
     p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx2>;
     p.micro_i8 = microkernel_avx2_i8;
     p.i8_kernel = "vpmaddubsw (AVX2, B in 63 levels)";
+    // Float32 Winograd beats vpmaddubsw's direct convolution on the VAE's frames and the U-Net's 16x16 and 32x32,
+    // not on its 8x8 (BENCHMARKS.md, twenty-second session); vpdpbusd's beats Winograd on every VAE layer.
+    p.i8_winograd_min_frame = 16;
     return p;
   }();
   static const GemmPath avx512 = [] {

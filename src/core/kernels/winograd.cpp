@@ -13,7 +13,9 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <cmath>
 #include <string>
+#include <vector>
 
 #include "core/cpu.h"
 #include "core/error.h"
@@ -163,6 +165,83 @@ bool winograd_wins(int64_t cin, int64_t cout, int64_t n, int64_t h, int64_t w) {
   return n * h * w >= (winograd_tile_for(h, w) == WinogradTile::F4x4 ? 512 : 1024);
 }
 
+namespace {
+
+// Precision::Int8's scales: of the input per pixel and group of channels (wino_detail::InputQuant), of the weights
+// per output channel and group of its cin * 9 taps (k = c * 9 + t), in the direct convolution's groups (gemm.h's
+// int8_group of K = cin * 9), laid out [group][output channel] with the channels padded to a multiple of mr (zeros).
+struct Int8Scales {
+  std::vector<float> x_inv, x_scale, w_inv, w_scale;
+  int64_t x_group = 1, x_groups = 1, w_group = 1, w_ld = 0;
+  wino_detail::InputQuant input() const { return {x_inv.data(), x_scale.data(), x_group, x_groups}; }
+  // The scales of the 9 taps of input channel c for the lanes of output channels o, o + 1, ...
+  void taps(int64_t c, int64_t o, wino_detail::TapQuant* q) const {
+    int64_t g = c * 9 / w_group, left = (g + 1) * w_group - c * 9;  // taps left in group g (groups hold >= 9)
+    for (int t = 0; t < 9; ++t, --left) {
+      if (left == 0) ++g, left = w_group;
+      q->inv[t] = w_inv.data() + g * w_ld + o;
+      q->scale[t] = w_scale.data() + g * w_ld + o;
+    }
+  }
+};
+
+Int8Scales int8_scales(const float* x, int64_t n, int64_t plane, int64_t cin, const Operand& weight, int64_t cout,
+                       int mr, const gemm_detail::GemmPath& path) {
+  Int8Scales s;
+  const int64_t group = int8_group(cin), groups = ceil_div(cin, group);
+  s.x_group = group;
+  s.x_groups = groups;
+  s.x_inv.resize(size_t(n * groups * plane));
+  s.x_scale.resize(s.x_inv.size());
+  const int64_t K = cin * 9;
+  s.w_group = int8_group(K);
+  const int64_t w_groups = ceil_div(K, s.w_group), panels = ceil_div(cout, mr);
+  s.w_ld = panels * mr;
+  s.w_inv.assign(size_t(w_groups * s.w_ld), 0.0f);
+  s.w_scale.assign(s.w_inv.size(), 0.0f);
+  constexpr int64_t kPixels = 1024;  // a run of pixels whose maxima stay in L1
+  const int64_t runs = ceil_div(plane, kPixels);
+  const int threads = omp_in_parallel() ? 1 : num_threads();
+#pragma omp parallel num_threads(threads) if (threads > 1)
+  {
+#pragma omp for collapse(2) schedule(static) nowait
+    for (int64_t fg = 0; fg < n * groups; ++fg)
+      for (int64_t r = 0; r < runs; ++r) {
+        const int64_t f = fg / groups, c0 = fg % groups * group, c1 = std::min(cin, c0 + group);
+        const int64_t p0 = r * kPixels, np = std::min(kPixels, plane - p0);
+        float m[kPixels] = {};
+        for (int64_t c = c0; c < c1; ++c) {
+          const float* xc = x + (f * cin + c) * plane + p0;
+          for (int64_t p = 0; p < np; ++p) m[p] = std::max(m[p], std::fabs(xc[p]));
+        }
+        for (int64_t p = 0; p < np; ++p) {
+          s.x_inv[size_t(fg * plane + p0 + p)] = gemm_detail::i8_inverse(m[p]);
+          s.x_scale[size_t(fg * plane + p0 + p)] = gemm_detail::i8_scale(m[p]);
+        }
+      }
+    // The weights' groups through the path's A packer (their dtype converted as the filter transform's are).
+    alignas(64) float buf[kInt8Block * wino_detail::kMaxRows];
+#pragma omp for collapse(2) schedule(static)
+    for (int64_t op = 0; op < panels; ++op)
+      for (int64_t g = 0; g < w_groups; ++g) {
+        const int64_t o = op * mr, k0 = g * s.w_group, len = std::min(s.w_group, K - k0);
+        const int rows = int(std::min<int64_t>(mr, cout - o));
+        path.pack_a(weight.element(o * K + k0), weight.dtype, K, false,
+                    weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len, buf);
+        float m[wino_detail::kMaxRows] = {};
+        for (int64_t k = 0; k < len; ++k)
+          for (int i = 0; i < mr; ++i) m[i] = std::max(m[i], std::fabs(buf[k * mr + i]));
+        for (int i = 0; i < rows; ++i) {
+          s.w_inv[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_inverse(m[i]);
+          s.w_scale[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_scale(m[i]);
+        }
+      }
+  }
+  return s;
+}
+
+}  // namespace
+
 void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
                      int64_t cin, int64_t cout, float* y, Act act, bool accumulate, WinogradTile tile) {
   if (n <= 0 || h <= 0 || w <= 0 || cout <= 0) return;
@@ -176,10 +255,16 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const int64_t tiles_x = ceil_div(w, m), tpf = ceil_div(h, m) * tiles_x, ntiles = n * tpf;
   const int64_t K = std::max<int64_t>(cin, 1);
   // Precision::Bf16 rounds the convolution's inputs, the input values and the weights, to bfloat16, as the direct
-  // convolution does; the transforms and the products of the transformed tiles stay float32.
-  const bool bf16 = precision() == Precision::Bf16;
-  const wino_detail::InputPanelFn input_panel = bf16 ? kern.input_bf16[ti] : kern.input[ti];
-  const wino_detail::FilterFn filter_rows = bf16 ? kern.filter_bf16[ti] : kern.filter[ti];
+  // convolution does; Int8 quantises them to int8 (winograd.h says with which scales). The transforms and the
+  // products of the transformed tiles stay float32.
+  const wino_detail::OperandRounding rounding = precision() == Precision::Bf16   ? wino_detail::OperandRounding::Bf16
+                                                : precision() == Precision::Int8 ? wino_detail::OperandRounding::Int8
+                                                                                 : wino_detail::OperandRounding::None;
+  const wino_detail::InputPanelFn input_panel = kern.input[int(rounding)][ti];
+  const wino_detail::FilterFn filter_rows = kern.filter[int(rounding)][ti];
+  const bool int8 = rounding == wino_detail::OperandRounding::Int8 && cin > 0;
+  const Int8Scales q8 = int8 ? int8_scales(x, n, h * w, cin, weight, cout, MR, path) : Int8Scales{};
+  const wino_detail::InputQuant input_quant = q8.input();
 
   const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
   const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
@@ -216,7 +301,11 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
         }
         path.pack_a(weight.element((o * cin + c0) * 9), weight.dtype, cin * 9, false,
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
-        for (int c = 0; c < len; ++c) filter_rows(g + c * 9 * MR, dst + c * MR, u_xi);
+        wino_detail::TapQuant tq;
+        for (int c = 0; c < len; ++c) {
+          if (int8) q8.taps(c0 + c, o, &tq);
+          filter_rows(g + c * 9 * MR, dst + c * MR, u_xi, &tq);
+        }
       }
   };
 
@@ -235,7 +324,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
           for (int64_t xi = 0; xi < a2; ++xi) std::fill_n(V + xi * v_xi + p * K * L, L, 0.0f);
           continue;
         }
-        input_panel(x, cin, pg, c0, c1, V + p * K * L, v_xi);
+        input_panel(x, cin, pg, c0, c1, V + p * K * L, v_xi, &input_quant);
       }
   };
 

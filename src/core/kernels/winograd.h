@@ -3,8 +3,12 @@
 // activations: y = Aᵀ[(G g Gᵀ) ⊙ (Bᵀ d B)]A per output tile, with the (m+2)^2 tile positions as batched GEMMs on
 // the SGEMM engine's micro-kernels. Float32 arithmetic; weights in their stored dtype (F32/F16/BF16, or I8
 // dequantised with its per-output-channel scale inside the filter transform). Under Precision::Bf16 the input values
-// and weights are rounded to bfloat16 before their transforms. conv2d() dispatches here according
-// to conv_algo() (conv.h).
+// and weights are rounded to bfloat16 before their transforms. Under Precision::Int8 they are quantised to int8 and
+// back before their transforms, with gemm.h's rule (s = max|v| / 127, q = nearbyint(v * (127 / max)) within
+// -127..127, value q * s): the weights per output channel and int8_group of its cin * 9 taps, exactly as the direct
+// convolution quantises them; the input per pixel and int8_group of its cin channels (the direct convolution's B
+// scales cover a pixel's 3x3 neighbourhood instead, which a transform of whole tiles cannot follow), always in 127
+// levels. conv2d() dispatches here according to conv_algo() (conv.h).
 #include <cstdint>
 
 #include "core/kernels/gemm.h"

@@ -29,10 +29,24 @@ struct PanelGeom {
   Segment seg[kMaxLanes];
 };
 
+// What the transforms do to their operands' values first, as the direct convolution does to the products' operands
+// (gemm.h, Precision): nothing (Fp32), round them to bfloat16 (Bf16), or quantise them to int8 and back (Int8).
+enum class OperandRounding : uint8_t { None, Bf16, Int8 };
+constexpr int kRoundings = 3;
+
+// Int8 input: value x of channel c at pixel p of frame f becomes clamp(nearbyint(x * inv), -127, 127) * scale,
+// with inv and scale at [(f * groups + c / group) * h * w + p] (the pixel's largest magnitude over its group of
+// channels, gemm.h's i8_inverse / i8_scale).
+struct InputQuant {
+  const float* inv = nullptr;
+  const float* scale = nullptr;
+  int64_t group = 1, groups = 1;
+};
+
 // Input transform of channels [c0, c1) of one panel: dst[xi*xi_stride + c*L + j] = (Bᵀ d B)[xi] of tile j.
-// x is frame-major [n, cin, h, w].
+// x is frame-major [n, cin, h, w]; q is read under OperandRounding::Int8 only.
 using InputPanelFn = void (*)(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, int64_t c1, float* dst,
-                              int64_t xi_stride);
+                              int64_t xi_stride, const InputQuant* q);
 
 struct OutputEpilogue {
   float* y;         // frame-major [n, cout, h, w]
@@ -44,19 +58,25 @@ struct OutputEpilogue {
 // Output transform of one output channel of one panel: src[xi*xi_stride + j] is M[xi] of tile j.
 using OutputPanelFn = void (*)(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep);
 
-// Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
-// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels.
-using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride);
+// Int8 filter taps: tap t of lane i becomes clamp(nearbyint(g * inv[t][i]), -127, 127) * scale[t][i] (the scales
+// of the quantisation group holding that tap of the lane's output channel).
+struct TapQuant {
+  const float* inv[9];
+  const float* scale[9];
+};
 
-// One kernel path's transforms, indexed by tile: [0] F(2x2,3x3), [1] F(4x4,3x3).
+// Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
+// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. q is read
+// under OperandRounding::Int8 only.
+using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride, const TapQuant* q);
+
+// One kernel path's transforms, indexed by [OperandRounding][tile], tile [0] F(2x2,3x3), [1] F(4x4,3x3).
 struct WinogradKernels {
   int lanes = 16;  // L, the NR of the path's GEMM
   int rows = 6;    // R, the MR of the path's GEMM
-  InputPanelFn input[2] = {};
-  InputPanelFn input_bf16[2] = {};  // the same with the input values rounded to bfloat16 first (Precision::Bf16)
+  InputPanelFn input[kRoundings][2] = {};
   OutputPanelFn output[2] = {};
-  FilterFn filter[2] = {};
-  FilterFn filter_bf16[2] = {};  // the same with the taps rounded to bfloat16 first (Precision::Bf16)
+  FilterFn filter[kRoundings][2] = {};
 };
 const WinogradKernels& winograd_kernels(KernelPath p);
 

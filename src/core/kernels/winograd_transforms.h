@@ -12,6 +12,7 @@
 //               G = [¼ 0 0; -⅙ -⅙ -⅙; -⅙ ⅙ -⅙; 1/24 1/12 ⅙; 1/24 -1/12 ⅙; 0 0 1],
 //               Aᵀ = [1 1 1 1 1 0; 0 1 -1 2 -2 0; 0 1 1 4 4 0; 0 1 -1 8 -8 1]
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "core/dtype.h"
@@ -77,18 +78,27 @@ struct Transform<4> {
   }
 };
 
-// RoundBf16 (Precision::Bf16): every input value is rounded to bfloat16 before the transform, as the direct
-// convolution rounds its input; the transform itself stays float32.
-template <int M, int L, bool RoundBf16>
+// int8 quantised and back, per lane: clamp(nearbyint(v * inv), -127, 127) * scale (the product rounded before the
+// rounding to an integer, as the GEMM's quantisers do; inv = scale = 0 gives 0).
+inline float int8_value(float v, float inv, float scale) {
+  return std::clamp(std::nearbyint(v * inv), -127.0f, 127.0f) * scale;
+}
+
+// Rounding (gemm.h, Precision): the input values are rounded to bfloat16, or quantised to int8 with the scales of
+// their pixel (q), before the transform, as the direct convolution rounds its input; the transform stays float32.
+template <int M, int L, OperandRounding Rounding>
 void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, int64_t c1, float* dst,
-                 int64_t xi_stride) {
+                 int64_t xi_stride, const InputQuant* q) {
   constexpr int A = Transform<M>::A;
   const int64_t h = pg.h, w = pg.w, plane = h * w;
   alignas(64) float t[A][A][L];  // row transforms: t[r][l][j] = (Bᵀ d_r)_l of tile j, d_r its input row r
   alignas(64) float vt[A][A][L];
-  // A row de-interleaved: ph[q][i] = its column M*i + q, so tile i's column s is ph[s % M][i + s / M] and the row
-  // transform reads whole vectors (zeroed: RoundBf16 rounds all of it).
+  // A row de-interleaved: ph[k][i] = its column M*i + k, so tile i's column s is ph[s % M][i + s / M] and the row
+  // transform reads whole vectors (zeroed: the rounding rounds all of it). Under Int8 the pixels' inverse scales
+  // and scales are de-interleaved the same way.
   alignas(64) float ph[M][L + 1] = {};
+  alignas(64) float ph_inv[M][L + 1] = {};
+  alignas(64) float ph_scale[M][L + 1] = {};
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
     for (int r = 0; r < A; ++r)
@@ -99,6 +109,7 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
       const Segment& s = pg.seg[si];
       const int nl = s.j1 - s.j0;
       const float* xc = x + (s.f * cin + c) * plane;
+      const int64_t qc = Rounding == OperandRounding::Int8 ? (s.f * q->groups + c / q->group) * plane : 0;
       for (int r = 0; r < A; ++r) {
         const int64_t iy = s.ty * M - 1 + r;
         if (iy < 0 || iy >= h) {
@@ -110,26 +121,34 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         // every row cost about a tenth of a 128-channel 256x256 convolution, copying the edge rows a twentieth:
         // at 256 columns every row segment touches an edge).
         const int64_t ix0 = s.tx0 * M - 1;
-        const float* row = xc + iy * w;
-        const auto at = [&](int64_t col) { return col >= 0 && col < w ? row[col] : 0.0f; };
         // Tiles [i_lo, i_hi) lie inside the frame: columns ix0 + M i .. ix0 + M i + M - 1 in [0, w).
         const int i_lo = ix0 < 0 ? 1 : 0;
         const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-        for (int i = 0; i < i_lo; ++i)
-          for (int q = 0; q < M; ++q) ph[q][i] = at(ix0 + M * i + q);
-        const float* src = row + ix0;
-        for (int i = i_lo; i < i_hi; ++i)
-          for (int q = 0; q < M; ++q) ph[q][i] = src[M * i + q];
-        for (int i = i_hi; i < nl; ++i)
-          for (int q = 0; q < M; ++q) ph[q][i] = at(ix0 + M * i + q);
-        ph[0][nl] = at(ix0 + M * nl);
-        ph[1][nl] = at(ix0 + M * nl + 1);
-        if constexpr (RoundBf16)  // all of ph: a fixed trip count, which vectorises
-          for (int q = 0; q < M; ++q)
-            for (int i = 0; i < L + 1; ++i) ph[q][i] = rounded_to_bf16(ph[q][i]);
+        const auto gather = [&](const float* row, float (&out)[M][L + 1]) {
+          const auto at = [&](int64_t col) { return col >= 0 && col < w ? row[col] : 0.0f; };
+          for (int i = 0; i < i_lo; ++i)
+            for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
+          const float* src = row + ix0;
+          for (int i = i_lo; i < i_hi; ++i)
+            for (int k = 0; k < M; ++k) out[k][i] = src[M * i + k];
+          for (int i = i_hi; i < nl; ++i)
+            for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
+          out[0][nl] = at(ix0 + M * nl);
+          out[1][nl] = at(ix0 + M * nl + 1);
+        };
+        gather(xc + iy * w, ph);
+        if constexpr (Rounding == OperandRounding::Bf16)  // all of ph: a fixed trip count, which vectorises
+          for (int k = 0; k < M; ++k)
+            for (int i = 0; i < L + 1; ++i) ph[k][i] = rounded_to_bf16(ph[k][i]);
+        if constexpr (Rounding == OperandRounding::Int8) {
+          gather(q->inv + qc + iy * w, ph_inv);
+          gather(q->scale + qc + iy * w, ph_scale);
+          for (int k = 0; k < M; ++k)
+            for (int i = 0; i < L + 1; ++i) ph[k][i] = int8_value(ph[k][i], ph_inv[k][i], ph_scale[k][i]);
+        }
         for (int i = 0; i < nl; ++i) {
           float d[A], v[A];
-          for (int q = 0; q < A; ++q) d[q] = ph[q % M][i + q / M];
+          for (int k = 0; k < A; ++k) d[k] = ph[k % M][i + k / M];
           Transform<M>::bt(d, v);
           for (int l = 0; l < A; ++l) t[r][l][s.j0 + i] = v[l];
         }
@@ -188,16 +207,26 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
   }
 }
 
-// RoundBf16 (Precision::Bf16): the taps are rounded to bfloat16 first, as the direct convolution rounds its weights.
-template <int M, int R, bool RoundBf16>
-void filter_rows(const float* g, float* u, int64_t xi_stride) {
+// Rounding (gemm.h, Precision): the taps are rounded to bfloat16, or quantised to int8 with their group's scales
+// (q), first, as the direct convolution rounds its weights.
+template <int M, int R, OperandRounding Rounding>
+void filter_rows(const float* g, float* u, int64_t xi_stride, const TapQuant* q) {
   constexpr int A = Transform<M>::A;
   alignas(64) float ut[A * A][R];
-  const auto tap = [&](int t, int j) { return RoundBf16 ? rounded_to_bf16(g[t * R + j]) : g[t * R + j]; };
+  alignas(64) float rounded[9 * R];
+  const float* taps = g;
+  if constexpr (Rounding != OperandRounding::None) {
+    for (int t = 0; t < 9; ++t)
+      for (int j = 0; j < R; ++j)
+        rounded[t * R + j] = Rounding == OperandRounding::Bf16
+                                 ? rounded_to_bf16(g[t * R + j])
+                                 : int8_value(g[t * R + j], q->inv[t][j], q->scale[t][j]);
+    taps = rounded;
+  }
   for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
-      const float row[3] = {tap(p * 3, j), tap(p * 3 + 1, j), tap(p * 3 + 2, j)};
+      const float row[3] = {taps[p * 3 * R + j], taps[(p * 3 + 1) * R + j], taps[(p * 3 + 2) * R + j]};
       Transform<M>::g(row, t[p]);
     }
     for (int l = 0; l < A; ++l) {
@@ -210,21 +239,24 @@ void filter_rows(const float* g, float* u, int64_t xi_stride) {
   for (int xi = 0; xi < A * A; ++xi) std::copy_n(ut[xi], R, u + xi * xi_stride);
 }
 
+template <int L, int R, OperandRounding Rounding>
+void set_rounding(WinogradKernels& k) {
+  k.input[int(Rounding)][0] = input_panel<2, L, Rounding>;
+  k.input[int(Rounding)][1] = input_panel<4, L, Rounding>;
+  k.filter[int(Rounding)][0] = filter_rows<2, R, Rounding>;
+  k.filter[int(Rounding)][1] = filter_rows<4, R, Rounding>;
+}
+
 template <int L, int R>
 WinogradKernels make_winograd_kernels() {
   WinogradKernels k;
   k.lanes = L;
   k.rows = R;
-  k.input[0] = input_panel<2, L, false>;
-  k.input[1] = input_panel<4, L, false>;
-  k.input_bf16[0] = input_panel<2, L, true>;
-  k.input_bf16[1] = input_panel<4, L, true>;
+  set_rounding<L, R, OperandRounding::None>(k);
+  set_rounding<L, R, OperandRounding::Bf16>(k);
+  set_rounding<L, R, OperandRounding::Int8>(k);
   k.output[0] = output_panel<2, L>;
   k.output[1] = output_panel<4, L>;
-  k.filter[0] = filter_rows<2, R, false>;
-  k.filter[1] = filter_rows<4, R, false>;
-  k.filter_bf16[0] = filter_rows<2, R, true>;
-  k.filter_bf16[1] = filter_rows<4, R, true>;
   return k;
 }
 
