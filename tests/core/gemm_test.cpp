@@ -415,6 +415,41 @@ TEST_P(GemmTest, Int8ComputeMultipliesQuantisedOperands) {
     }
 }
 
+// Int8 with non-finite operands, as float32 would: a NaN anywhere in a row of A or column of B (here before finite
+// values, in the first of two groups, and in the second) makes that row's or column's outputs NaN, an inf makes them
+// non-finite; every other output is bit for bit what it is without them (the scales are per row and column). Row A
+// read in place (fused quantiser) and packed (transposed), B in both layouts.
+TEST_P(GemmTest, Int8NonFiniteOperandsGiveNonFiniteOutputs) {
+  const int64_t M = 13, N = 37, K = 700;
+  std::mt19937 rng(77);
+  for (int t = 0; t < 4; ++t) {
+    const bool ta = t & 1, tb = t & 2;
+    const std::vector<float> a0 = test::random_vec(size_t(M * K), rng), b0 = test::random_vec(size_t(K * N), rng);
+    const auto a_at = [&](int64_t i, int64_t k) { return size_t(ta ? k * M + i : i * K + k); };
+    const auto b_at = [&](int64_t k, int64_t j) { return size_t(tb ? j * K + k : k * N + j); };
+    std::vector<float> a = a0, b = b0;
+    a[a_at(1, 3)] = NAN;                        // row 1: first group, finite values after it
+    a[a_at(7, 650)] = NAN;                      // row 7: second group
+    a[a_at(9, 100)] = INFINITY;                 // row 9
+    b[b_at(5, 2)] = NAN;                        // column 2
+    b[b_at(690, 31)] = -INFINITY;               // column 31
+    const test::PrecisionGuard int8(Precision::Int8);
+    std::vector<float> c(size_t(M * N)), c0(c.size());
+    gemm(M, N, K, {a.data(), DType::F32, ta ? M : K, ta}, {b.data(), DType::F32, tb ? K : N, tb}, c.data(), N);
+    gemm(M, N, K, {a0.data(), DType::F32, ta ? M : K, ta}, {b0.data(), DType::F32, tb ? K : N, tb}, c0.data(), N);
+    for (int64_t i = 0; i < M; ++i)
+      for (int64_t j = 0; j < N; ++j) {
+        const float v = c[size_t(i * N + j)];
+        if (i == 1 || i == 7 || j == 2)
+          EXPECT_TRUE(std::isnan(v)) << "ta " << ta << " tb " << tb << " (" << i << ", " << j << "): " << v;
+        else if (i == 9 || j == 31)
+          EXPECT_FALSE(std::isfinite(v)) << "ta " << ta << " tb " << tb << " (" << i << ", " << j << "): " << v;
+        else
+          EXPECT_EQ(v, c0[size_t(i * N + j)]) << "ta " << ta << " tb " << tb << " (" << i << ", " << j << ")";
+      }
+  }
+}
+
 // The same int8 result on 1 and 2 threads (splitting M and N) and on every path that quantises B alike (bit for
 // bit: the int32 sums are exact and each path scales them with the same float32 operations; no activation, whose
 // SIMD polynomials differ). The AVX2 path's 63 levels of B give other numbers (the check above).

@@ -464,12 +464,13 @@ TEST_P(WinogradTest, Int8QuantisesThenTransformsInFloat32) {
     set_conv_algo(algo);
     const bool winograd = algo == ConvAlgo::Winograd || min_frame <= 17;
     EXPECT_EQ(conv2d_algorithm(g, c.n, c.h, c.w), winograd ? "winograd F(4x4,3x3)" : "direct") << conv_algo_name(algo);
-    if (winograd)
+    if (winograd) {
       EXPECT_EQ(check_against(R, WinogradTile::F4x4, [&](std::vector<float>& y) {
                   conv2d(R.x.data(), c.n, c.h, c.w, R.wt.operand(c.cin * 9), R.bias.data(), g, y.data());
                 }),
                 0)
           << conv_algo_name(algo);
+    }
   }
   set_conv_algo(ConvAlgo::Auto);
   if (min_frame > 0 && min_frame < 4096) {

@@ -14,14 +14,16 @@ namespace {
 void lane_scales(const float* src, int width, int64_t len, float* scale, float* inv) {
   for (int i = 0; i < width; ++i) {
     float m = 0.0f;
-    for (int64_t k = 0; k < len; ++k) m = std::max(m, std::fabs(src[k * width + i]));
+    for (int64_t k = 0; k < len; ++k) m = nan_sticky_max(m, std::fabs(src[k * width + i]));
     scale[i] = i8_scale(m);
     inv[i] = i8_inverse(m);
   }
 }
 
+// A NaN (a NaN lane's scale is NaN too, so its byte is never seen) quantises to 0: float -> int of NaN is undefined.
 inline int32_t quantize(float x, float inv) {
-  return int32_t(std::clamp(std::nearbyint(x * inv), -127.0f, 127.0f));
+  const float r = std::nearbyint(x * inv);
+  return r == r ? int32_t(std::clamp(r, -127.0f, 127.0f)) : 0;
 }
 
 // One group: `len` float rows at src into the region at dst (<= src in place, else apart). In place, slot (p, i)

@@ -148,8 +148,13 @@ struct I8Group {
 };
 // Scale of one lane from its largest magnitude m, and the factor that quantises it (gemm.h: Precision::Int8).
 // `levels` is the largest quantised magnitude: 127, or kI8LevelsAvx2B for B on the AVX2 path.
-inline float i8_scale(float m, int levels = 127) { return m > 1e-30f ? m / float(levels) : 0.0f; }
-inline float i8_inverse(float m, int levels = 127) { return m > 1e-30f ? float(levels) / m : 0.0f; }
+// A NaN among a lane's values makes its largest magnitude NaN (quantisers take it NaN-sticky: kept once seen, as the
+// integer maximum of the magnitudes' bits does), and so its scale: every output it reaches is NaN, as in float32,
+// instead of the finite values its clamped bytes would give.
+inline float i8_scale(float m, int levels = 127) { return !(m <= 1e-30f) ? m / float(levels) : 0.0f; }
+inline float i8_inverse(float m, int levels = 127) { return !(m <= 1e-30f) ? float(levels) / m : 0.0f; }
+// max(m, a) for magnitudes a, NaN once either is NaN.
+inline float nan_sticky_max(float m, float a) { return a > m || a != a ? a : m; }
 constexpr int kI8LevelsAvx2B = 63;  // vpmaddubsw's int16 pair sums of u8 x s8 stay exact (avx2/gemm.cpp)
 // Scalar quantiser (any path) and the exact scalar micro-kernel of quad panels (signed bytes).
 void quantize_i8_quads(const float* src, float* dst, int width, int64_t kc, int64_t group, bool unsigned_bytes);

@@ -212,7 +212,7 @@ Int8Scales int8_scales(const float* x, int64_t n, int64_t plane, int64_t cin, co
         float m[kPixels] = {};
         for (int64_t c = c0; c < c1; ++c) {
           const float* xc = x + (f * cin + c) * plane + p0;
-          for (int64_t p = 0; p < np; ++p) m[p] = std::max(m[p], std::fabs(xc[p]));
+          for (int64_t p = 0; p < np; ++p) m[p] = gemm_detail::nan_sticky_max(m[p], std::fabs(xc[p]));
         }
         for (int64_t p = 0; p < np; ++p) {
           s.x_inv[size_t(fg * plane + p0 + p)] = gemm_detail::i8_inverse(m[p]);
@@ -230,7 +230,7 @@ Int8Scales int8_scales(const float* x, int64_t n, int64_t plane, int64_t cin, co
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len, buf);
         float m[wino_detail::kMaxRows] = {};
         for (int64_t k = 0; k < len; ++k)
-          for (int i = 0; i < mr; ++i) m[i] = std::max(m[i], std::fabs(buf[k * mr + i]));
+          for (int i = 0; i < mr; ++i) m[i] = gemm_detail::nan_sticky_max(m[i], std::fabs(buf[k * mr + i]));
         for (int i = 0; i < rows; ++i) {
           s.w_inv[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_inverse(m[i]);
           s.w_scale[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_scale(m[i]);

@@ -182,6 +182,12 @@ inline __m256i lane_mask(int n) {
 }
 
 // 8 floats x * f as int32, nearest even (as nearbyint), clamped to +-levels; `sum` gains them.
+// The lanes' running largest magnitudes, compared as integers: the same order as floats, and NaN (above inf) sticks
+// (gemm_internal.h: i8_scale).
+inline __m256i max_magnitude(__m256i v, __m256 x, __m256 sign) {
+  return _mm256_max_epi32(v, _mm256_castps_si256(_mm256_andnot_ps(sign, x)));
+}
+
 inline __m256i quantize8(__m256 x, __m256 f, int levels, __m256i& sum) {
   __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));
   q = _mm256_min_epi32(_mm256_max_epi32(q, _mm256_set1_epi32(-levels)), _mm256_set1_epi32(levels));
@@ -200,10 +206,9 @@ void quantize_quads(const float* src, float* dst, int width, int64_t len, int64_
   const __m256 sign = _mm256_set1_ps(-0.0f);
   for (int ch = 0; ch < chunks; ++ch) {
     const __m256i m = lane_mask(width - 8 * ch);
-    __m256 v = _mm256_setzero_ps();
-    for (int64_t k = 0; k < len; ++k)
-      v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_maskload_ps(src + k * width + 8 * ch, m)));
-    _mm256_store_ps(mx + 8 * ch, v);
+    __m256i v = _mm256_setzero_si256();
+    for (int64_t k = 0; k < len; ++k) v = max_magnitude(v, _mm256_maskload_ps(src + k * width + 8 * ch, m), sign);
+    _mm256_store_ps(mx + 8 * ch, _mm256_castsi256_ps(v));
   }
   for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i], kLevels), inv[i] = i8_inverse(mx[i], kLevels);
   int32_t* out = reinterpret_cast<int32_t*>(dst);
@@ -273,12 +278,15 @@ void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_
         for (int64_t p = 0; p < slots; ++p) out[p * MR + i] = int32_t(0x80808080u);
       } else {
         const float* row = a + i * lda + k0;
-        __m256 v = _mm256_setzero_ps();
+        __m256i v = _mm256_setzero_si256();
         int64_t k = 0;
-        for (; k + 8 <= len; k += 8) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_loadu_ps(row + k)));
+        for (; k + 8 <= len; k += 8) v = max_magnitude(v, _mm256_loadu_ps(row + k), sign);
         const __m256i tail_mask = lane_mask(int(len - k));
-        if (k < len) v = _mm256_max_ps(v, _mm256_andnot_ps(sign, _mm256_maskload_ps(row + k, tail_mask)));
-        const float m = vmath::hmax_ps(v);
+        if (k < len) v = max_magnitude(v, _mm256_maskload_ps(row + k, tail_mask), sign);
+        alignas(32) float lane_max[8];
+        _mm256_store_ps(lane_max, _mm256_castsi256_ps(v));
+        float m = 0.0f;
+        for (float l : lane_max) m = nan_sticky_max(m, l);
         scale = i8_scale(m);
         const __m256 f = _mm256_set1_ps(i8_inverse(m));
         __m256i sum = _mm256_setzero_si256();

@@ -161,9 +161,11 @@ __attribute__((always_inline)) inline void quantize_quads(const float* src, floa
   alignas(64) float mx[kMaxNR] = {}, scale[kMaxNR] = {}, inv[kMaxNR] = {};
   for (int ch = 0; ch < chunks; ++ch) {
     const __mmask16 m = lanes(width - 16 * ch);
-    __m512 v = _mm512_setzero_ps();
-    for (int64_t k = 0; k < len; ++k) v = _mm512_max_ps(v, _mm512_abs_ps(_mm512_maskz_loadu_ps(m, src + k * width + 16 * ch)));
-    _mm512_store_ps(mx + 16 * ch, v);
+    // Magnitudes compared as integers: the same order, and NaN (above inf) sticks (gemm_internal.h: i8_scale).
+    __m512i v = _mm512_setzero_si512();
+    for (int64_t k = 0; k < len; ++k)
+      v = _mm512_max_epi32(v, _mm512_castps_si512(_mm512_abs_ps(_mm512_maskz_loadu_ps(m, src + k * width + 16 * ch))));
+    _mm512_store_ps(mx + 16 * ch, _mm512_castsi512_ps(v));
   }
   for (int i = 0; i < width; ++i) scale[i] = i8_scale(mx[i]), inv[i] = i8_inverse(mx[i]);
   int32_t* out = reinterpret_cast<int32_t*>(dst);
