@@ -22,8 +22,8 @@ void lane_scales(const float* src, int width, int64_t len, float* scale, float* 
 
 // A NaN (a NaN lane's scale is NaN too, so its byte is never seen) quantises to 0: float -> int of NaN is undefined.
 inline int32_t quantize(float x, float inv) {
-  const float r = std::nearbyint(x * inv);
-  return r == r ? int32_t(std::clamp(r, -127.0f, 127.0f)) : 0;
+  const float r = i8_round(x, inv);
+  return r == r ? int32_t(r) : 0;
 }
 
 // One group: `len` float rows at src into the region at dst (<= src in place, else apart). In place, slot (p, i)

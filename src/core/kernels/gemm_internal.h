@@ -6,6 +6,8 @@
 //   packed A micro-panel: kc x MR floats, element (i, k) at a[k*MR + i] (rows >= mr zero);
 //   packed B micro-panel: kc x NR floats, element (k, j) at b[k*NR + j] (columns >= nr zero);
 //   C tile: MR x NR, row-major with row stride ldc.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "core/cpu.h"
@@ -153,6 +155,9 @@ struct I8Group {
 // instead of the finite values its clamped bytes would give.
 inline float i8_scale(float m, int levels = 127) { return !(m <= 1e-30f) ? m / float(levels) : 0.0f; }
 inline float i8_inverse(float m, int levels = 127) { return !(m <= 1e-30f) ? float(levels) / m : 0.0f; }
+// x quantised with factor inv: nearbyint(x * inv) (the product rounded first) within -127..127, as a float; NaN
+// stays NaN. Every scalar quantiser rounds with it (SIMD ones do the same operations).
+inline float i8_round(float x, float inv) { return std::clamp(std::nearbyint(x * inv), -127.0f, 127.0f); }
 // max(m, a) for magnitudes a, NaN once either is NaN.
 inline float nan_sticky_max(float m, float a) { return a > m || a != a ? a : m; }
 constexpr int kI8LevelsAvx2B = 63;  // vpmaddubsw's int16 pair sums of u8 x s8 stay exact (avx2/gemm.cpp)

@@ -16,6 +16,7 @@
 #include <cstdint>
 
 #include "core/dtype.h"
+#include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 
 namespace egopd::wino_detail {
@@ -78,11 +79,8 @@ struct Transform<4> {
   }
 };
 
-// int8 quantised and back, per lane: clamp(nearbyint(v * inv), -127, 127) * scale (the product rounded before the
-// rounding to an integer, as the GEMM's quantisers do; inv = scale = 0 gives 0).
-inline float int8_value(float v, float inv, float scale) {
-  return std::clamp(std::nearbyint(v * inv), -127.0f, 127.0f) * scale;
-}
+// int8 quantised and back, per lane, as the GEMM's quantisers round (inv = scale = 0 gives 0).
+inline float int8_value(float v, float inv, float scale) { return gemm_detail::i8_round(v, inv) * scale; }
 
 // Rounding (gemm.h, Precision): the input values are rounded to bfloat16, or quantised to int8 with the scales of
 // their pixel (q), before the transform, as the direct convolution rounds its input; the transform stays float32.
