@@ -122,25 +122,28 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         // Tiles [i_lo, i_hi) lie inside the frame: columns ix0 + M i .. ix0 + M i + M - 1 in [0, w).
         const int i_lo = ix0 < 0 ? 1 : 0;
         const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-        const auto gather = [&](const float* row, float (&out)[M][L + 1]) {
-          const auto at = [&](int64_t col) { return col >= 0 && col < w ? row[col] : 0.0f; };
+        // cvt is applied as each value is gathered: a separate pass over ph would load whole vectors that the
+        // gather's single-float stores cannot forward to (a store-forwarding stall per vector).
+        const auto gather = [&](const float* row, float (&out)[M][L + 1], auto cvt) {
+          const auto at = [&](int64_t col) { return col >= 0 && col < w ? cvt(row[col]) : 0.0f; };
           for (int i = 0; i < i_lo; ++i)
             for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
           const float* src = row + ix0;
           for (int i = i_lo; i < i_hi; ++i)
-            for (int k = 0; k < M; ++k) out[k][i] = src[M * i + k];
+            for (int k = 0; k < M; ++k) out[k][i] = cvt(src[M * i + k]);
           for (int i = i_hi; i < nl; ++i)
             for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
           out[0][nl] = at(ix0 + M * nl);
           out[1][nl] = at(ix0 + M * nl + 1);
         };
-        gather(xc + iy * w, ph);
-        if constexpr (Rounding == OperandRounding::Bf16)  // all of ph: a fixed trip count, which vectorises
-          for (int k = 0; k < M; ++k)
-            for (int i = 0; i < L + 1; ++i) ph[k][i] = rounded_to_bf16(ph[k][i]);
+        const auto as_is = [](float v) { return v; };
+        if constexpr (Rounding == OperandRounding::Bf16)
+          gather(xc + iy * w, ph, [](float v) { return rounded_to_bf16(v); });
+        else
+          gather(xc + iy * w, ph, as_is);
         if constexpr (Rounding == OperandRounding::Int8) {
-          gather(q->inv + qc + iy * w, ph_inv);
-          gather(q->scale + qc + iy * w, ph_scale);
+          gather(q->inv + qc + iy * w, ph_inv, as_is);
+          gather(q->scale + qc + iy * w, ph_scale, as_is);
           for (int k = 0; k < M; ++k)
             for (int i = 0; i < L + 1; ++i) ph[k][i] = int8_value(ph[k][i], ph_inv[k][i], ph_scale[k][i]);
         }
@@ -211,20 +214,16 @@ template <int M, int R, OperandRounding Rounding>
 void filter_rows(const float* g, float* u, int64_t xi_stride, const TapQuant* q) {
   constexpr int A = Transform<M>::A;
   alignas(64) float ut[A * A][R];
-  alignas(64) float rounded[9 * R];
-  const float* taps = g;
-  if constexpr (Rounding != OperandRounding::None) {
-    for (int t = 0; t < 9; ++t)
-      for (int j = 0; j < R; ++j)
-        rounded[t * R + j] = Rounding == OperandRounding::Bf16
-                                 ? rounded_to_bf16(g[t * R + j])
-                                 : int8_value(g[t * R + j], q->inv[t][j], q->scale[t][j]);
-    taps = rounded;
-  }
+  // Rounded where the transform loads each tap (a rounded copy first stalled the transform's loads on its stores).
+  const auto tap = [&](int t, int j) {
+    if constexpr (Rounding == OperandRounding::Bf16) return rounded_to_bf16(g[t * R + j]);
+    if constexpr (Rounding == OperandRounding::Int8) return int8_value(g[t * R + j], q->inv[t][j], q->scale[t][j]);
+    return g[t * R + j];
+  };
   for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
-      const float row[3] = {taps[p * 3 * R + j], taps[(p * 3 + 1) * R + j], taps[(p * 3 + 2) * R + j]};
+      const float row[3] = {tap(p * 3, j), tap(p * 3 + 1, j), tap(p * 3 + 2, j)};
       Transform<M>::g(row, t[p]);
     }
     for (int l = 0; l < A; ++l) {
