@@ -91,12 +91,9 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
   const int64_t h = pg.h, w = pg.w, plane = h * w;
   alignas(64) float t[A][A][L];  // row transforms: t[r][l][j] = (Bᵀ d_r)_l of tile j, d_r its input row r
   alignas(64) float vt[A][A][L];
-  // A row de-interleaved: ph[k][i] = its column M*i + k, so tile i's column s is ph[s % M][i + s / M] and the row
-  // transform reads whole vectors (zeroed: the rounding rounds all of it). Under Int8 the pixels' inverse scales
-  // and scales are de-interleaved the same way.
+  // A row de-interleaved: ph[k][i] = its column M*i + k (rounded), so tile i's column s is ph[s % M][i + s / M] and
+  // the row transform reads whole vectors.
   alignas(64) float ph[M][L + 1] = {};
-  alignas(64) float ph_inv[M][L + 1] = {};
-  alignas(64) float ph_scale[M][L + 1] = {};
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
     for (int r = 0; r < A; ++r)
@@ -122,31 +119,25 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         // Tiles [i_lo, i_hi) lie inside the frame: columns ix0 + M i .. ix0 + M i + M - 1 in [0, w).
         const int i_lo = ix0 < 0 ? 1 : 0;
         const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-        // cvt is applied as each value is gathered: a separate pass over ph would load whole vectors that the
+        // Each value is rounded as it is gathered: a separate pass over ph would load whole vectors that the
         // gather's single-float stores cannot forward to (a store-forwarding stall per vector).
-        const auto gather = [&](const float* row, float (&out)[M][L + 1], auto cvt) {
-          const auto at = [&](int64_t col) { return col >= 0 && col < w ? cvt(row[col]) : 0.0f; };
-          for (int i = 0; i < i_lo; ++i)
-            for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
-          const float* src = row + ix0;
-          for (int i = i_lo; i < i_hi; ++i)
-            for (int k = 0; k < M; ++k) out[k][i] = cvt(src[M * i + k]);
-          for (int i = i_hi; i < nl; ++i)
-            for (int k = 0; k < M; ++k) out[k][i] = at(ix0 + M * i + k);
-          out[0][nl] = at(ix0 + M * nl);
-          out[1][nl] = at(ix0 + M * nl + 1);
+        const float* const row = xc + iy * w;
+        const float* const inv = Rounding == OperandRounding::Int8 ? q->inv + qc + iy * w : nullptr;
+        const float* const scale = Rounding == OperandRounding::Int8 ? q->scale + qc + iy * w : nullptr;
+        const auto value = [&](int64_t col) {  // col inside the row
+          if constexpr (Rounding == OperandRounding::Bf16) return rounded_to_bf16(row[col]);
+          if constexpr (Rounding == OperandRounding::Int8) return int8_value(row[col], inv[col], scale[col]);
+          return row[col];
         };
-        const auto as_is = [](float v) { return v; };
-        if constexpr (Rounding == OperandRounding::Bf16)
-          gather(xc + iy * w, ph, [](float v) { return rounded_to_bf16(v); });
-        else
-          gather(xc + iy * w, ph, as_is);
-        if constexpr (Rounding == OperandRounding::Int8) {
-          gather(q->inv + qc + iy * w, ph_inv, as_is);
-          gather(q->scale + qc + iy * w, ph_scale, as_is);
-          for (int k = 0; k < M; ++k)
-            for (int i = 0; i < L + 1; ++i) ph[k][i] = int8_value(ph[k][i], ph_inv[k][i], ph_scale[k][i]);
-        }
+        const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
+        for (int i = 0; i < i_lo; ++i)
+          for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
+        for (int i = i_lo; i < i_hi; ++i)
+          for (int k = 0; k < M; ++k) ph[k][i] = value(ix0 + M * i + k);
+        for (int i = i_hi; i < nl; ++i)
+          for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
+        ph[0][nl] = at(ix0 + M * nl);
+        ph[1][nl] = at(ix0 + M * nl + 1);
         for (int i = 0; i < nl; ++i) {
           float d[A], v[A];
           for (int k = 0; k < A; ++k) d[k] = ph[k % M][i + k / M];
