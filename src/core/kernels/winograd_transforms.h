@@ -79,8 +79,14 @@ struct Transform<4> {
   }
 };
 
-// int8 quantised and back, per lane, as the GEMM's quantisers round (inv = scale = 0 gives 0).
-inline float int8_value(float v, float inv, float scale) { return gemm_detail::i8_round(v, inv) * scale; }
+// An operand value as Rounding leaves it: as is, rounded to bfloat16, or int8 quantised with factor inv and back
+// with scale, as the GEMM's quantisers round (inv = scale = 0 gives 0; inv and scale are read only under Int8).
+template <OperandRounding Rounding>
+inline float rounded_operand(float v, float inv, float scale) {
+  if constexpr (Rounding == OperandRounding::Bf16) return rounded_to_bf16(v);
+  if constexpr (Rounding == OperandRounding::Int8) return gemm_detail::i8_round(v, inv) * scale;
+  return v;
+}
 
 // Rounding (gemm.h, Precision): the input values are rounded to bfloat16, or quantised to int8 with the scales of
 // their pixel (q), before the transform, as the direct convolution rounds its input; the transform stays float32.
@@ -125,9 +131,9 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         const float* const inv = Rounding == OperandRounding::Int8 ? q->inv + qc + iy * w : nullptr;
         const float* const scale = Rounding == OperandRounding::Int8 ? q->scale + qc + iy * w : nullptr;
         const auto value = [&](int64_t col) {  // col inside the row
-          if constexpr (Rounding == OperandRounding::Bf16) return rounded_to_bf16(row[col]);
-          if constexpr (Rounding == OperandRounding::Int8) return int8_value(row[col], inv[col], scale[col]);
-          return row[col];
+          if constexpr (Rounding == OperandRounding::Int8)
+            return rounded_operand<Rounding>(row[col], inv[col], scale[col]);
+          return rounded_operand<Rounding>(row[col], 0.0f, 0.0f);
         };
         const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
         for (int i = 0; i < i_lo; ++i)
@@ -207,9 +213,9 @@ void filter_rows(const float* g, float* u, int64_t xi_stride, const TapQuant* q)
   alignas(64) float ut[A * A][R];
   // Rounded where the transform loads each tap (a rounded copy first stalled the transform's loads on its stores).
   const auto tap = [&](int t, int j) {
-    if constexpr (Rounding == OperandRounding::Bf16) return rounded_to_bf16(g[t * R + j]);
-    if constexpr (Rounding == OperandRounding::Int8) return int8_value(g[t * R + j], q->inv[t][j], q->scale[t][j]);
-    return g[t * R + j];
+    if constexpr (Rounding == OperandRounding::Int8)
+      return rounded_operand<Rounding>(g[t * R + j], q->inv[t][j], q->scale[t][j]);
+    return rounded_operand<Rounding>(g[t * R + j], 0.0f, 0.0f);
   };
   for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel

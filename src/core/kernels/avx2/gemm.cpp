@@ -181,13 +181,13 @@ inline __m256i lane_mask(int n) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_load_si256((const __m256i*)ramp));
 }
 
-// 8 floats x * f as int32, nearest even (as nearbyint), clamped to +-levels; `sum` gains them.
 // The lanes' running largest magnitudes, compared as integers: the same order as floats, and NaN (above inf) sticks
 // (gemm_internal.h: i8_scale).
 inline __m256i max_magnitude(__m256i v, __m256 x, __m256 sign) {
   return _mm256_max_epi32(v, _mm256_castps_si256(_mm256_andnot_ps(sign, x)));
 }
 
+// 8 floats x * f as int32, nearest even (as nearbyint), clamped to +-levels; `sum` gains them.
 inline __m256i quantize8(__m256 x, __m256 f, int levels, __m256i& sum) {
   __m256i q = _mm256_cvtps_epi32(_mm256_mul_ps(x, f));
   q = _mm256_min_epi32(_mm256_max_epi32(q, _mm256_set1_epi32(-levels)), _mm256_set1_epi32(levels));
