@@ -321,18 +321,24 @@ TEST_P(GemmTest, SerialInsideParallelRegion) {
 
 TEST_P(GemmTest, OneThreadAndTwoThreadsAgree) {
   // Thread count changes only the partition of the work, never the summation order of an element. N = 150:
-  // the threads split columns; N = 40: they split rows (shared B blocks over two K blocks).
+  // the threads split columns; N = 40: they split rows (shared B blocks over two K blocks). In bf16 and int8 the
+  // threads split rows up to N = 320 (A is rounded or quantised once) and columns at N = 700 (each thread
+  // rounds or quantises all of A for its own columns).
   const int saved = num_threads();
-  for (int64_t N : {150, 40}) {
-    std::mt19937 rng(7);
-    StoredMatrix A(200, 700, false, DType::F32, true, rng), B(700, N, true, DType::F16, false, rng);
-    std::vector<float> c1(size_t(200 * N)), c2(size_t(200 * N));
-    set_num_threads(1);
-    gemm(200, N, 700, A.operand(), B.operand(), c1.data(), N);
-    set_num_threads(2);
-    gemm(200, N, 700, A.operand(), B.operand(), c2.data(), N);
-    EXPECT_EQ(c1, c2) << "N = " << N;
-  }
+  const Precision saved_precision = precision();
+  for (Precision p : {Precision::Fp32, Precision::Bf16, Precision::Int8})
+    for (int64_t N : {150, 40, 700}) {
+      set_precision(p);
+      std::mt19937 rng(7);
+      StoredMatrix A(200, 700, false, DType::F32, true, rng), B(700, N, true, DType::F16, false, rng);
+      std::vector<float> c1(size_t(200 * N)), c2(size_t(200 * N));
+      set_num_threads(1);
+      gemm(200, N, 700, A.operand(), B.operand(), c1.data(), N);
+      set_num_threads(2);
+      gemm(200, N, 700, A.operand(), B.operand(), c2.data(), N);
+      EXPECT_EQ(c1, c2) << precision_name(p) << ", N = " << N;
+    }
+  set_precision(saved_precision);
   set_num_threads(saved);
 }
 
