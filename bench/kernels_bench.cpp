@@ -113,8 +113,10 @@ void BM_egopd_conv3x3(benchmark::State& state) {
 }
 
 // Temporal (3,1,1) convolution on frame-major activations: args batch, frames, cin, cout, hw. EGOPD_CONV selects
-// the algorithm (auto: Winograd F(4,3) on 32+ pixels per frame of 16 frames); GFLOP/s count the direct algorithm's work.
-void BM_egopd_conv_temporal3(benchmark::State& state) {
+// the algorithm (auto: Winograd F(4,3) on 32+ pixels per frame of 16 frames, F(2,3) in bf16); GFLOP/s count the
+// direct algorithm's work.
+void conv_temporal3_bench(benchmark::State& state, egopd::Precision precision) {
+  egopd::set_precision(precision);
   const int64_t b = state.range(0), f = state.range(1), cin = state.range(2), cout = state.range(3),
                 hw = state.range(4);
   const std::vector<float> x = random_floats(size_t(b * f * cin * hw), 6), wt = random_floats(size_t(cout * cin * 3), 7),
@@ -128,8 +130,11 @@ void BM_egopd_conv_temporal3(benchmark::State& state) {
   }
   // Useful work only: the first and last frame have two taps.
   set_flops(state, 2.0 * b * cout * hw * cin * (3 * f - 2));
-  state.SetLabel("F16");
+  state.SetLabel(std::string("F16 ") + egopd::precision_name(precision));
+  egopd::set_precision(egopd::Precision::Fp32);
 }
+void BM_egopd_conv_temporal3(benchmark::State& state) { conv_temporal3_bench(state, egopd::Precision::Fp32); }
+void BM_egopd_conv_temporal3_bf16(benchmark::State& state) { conv_temporal3_bench(state, egopd::Precision::Bf16); }
 
 #if EGOPD_BENCH_ONEDNN
 // oneDNN convolution, f32, bias, forward inference. range(5): 0 = direct on plain NCHW activations (our layout),
@@ -202,6 +207,13 @@ BENCHMARK(BM_egopd_conv_temporal3)
     ->Args({1, 16, 128, 128, 65536})  // VAE decoder 256x256
     ->Args({1, 16, 128, 128, 2048})  // ... in the pixel tiles its temporal blocks run
     ->Args({1, 16, 512, 512, 512})
+    ->ArgNames({"b", "f", "cin", "cout", "hw"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_egopd_conv_temporal3_bf16)
+    ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
+    ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
+    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
     ->ArgNames({"b", "f", "cin", "cout", "hw"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
