@@ -152,27 +152,6 @@ void filter_transform(const float* __restrict w0, const float* __restrict w1, co
   }
 }
 
-// Output frame r of a tile from the products m[i][j], j < nr.
-template <int M>
-void output_transform(int r, const float* const* m, int nr, float bias, float* out) {
-  if constexpr (M == 2) {
-    if (r == 0)
-      for (int j = 0; j < nr; ++j) out[j] = m[0][j] + m[1][j] + m[2][j] + bias;
-    else
-      for (int j = 0; j < nr; ++j) out[j] = m[1][j] - m[2][j] - m[3][j] + bias;
-  } else {
-    const float c = r == 1 ? 2.0f : r == 2 ? 4.0f : 8.0f;
-    if (r == 0)
-      for (int j = 0; j < nr; ++j) out[j] = m[0][j] + (m[1][j] + m[2][j]) + (m[3][j] + m[4][j]) + bias;
-    else if (r == 2)
-      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] + m[2][j]) + c * (m[3][j] + m[4][j]) + bias;
-    else if (r == 1)
-      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] - m[2][j]) + c * (m[3][j] - m[4][j]) + bias;
-    else
-      for (int j = 0; j < nr; ++j) out[j] = (m[1][j] - m[2][j]) + c * (m[3][j] - m[4][j]) + m[5][j] + bias;
-  }
-}
-
 template <int M>
 void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                              const float* bias, int64_t cout, float* y, Act act, bool accumulate, int64_t ys) {
@@ -234,8 +213,9 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     float* const vb = V + omp_get_thread_num() * group * unit_floats;
-    alignas(64) float m[kA][gemm_detail::kMaxMR * gemm_detail::kMaxNR];  // M_i of one micro-tile, row stride NR
-    alignas(64) float out[gemm_detail::kMaxNR];
+    constexpr int64_t kMaxTile = gemm_detail::kMaxMR * gemm_detail::kMaxNR;
+    alignas(64) float m[kA][kMaxTile];         // M_i of one micro-tile, row stride NR
+    alignas(64) float out[M * kMaxTile];      // its output frames, where an activation follows
     const gemm_detail::TileEpilogue plain;
 #pragma omp for schedule(dynamic)
     for (int64_t g = 0; g < ngroups; ++g) {
@@ -260,22 +240,33 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
         const int mr = int(std::min<int64_t>(MR, cout - m0));
         for (int64_t u = 0; u < nu; ++u) {
           const auto [s, n0, nr] = unit(u0 + u);
+          // The last tile's frames past the video are not written.
+          const int64_t bi = s / tiles, t0 = M * (s % tiles), t1 = std::min<int64_t>(t0 + M, f);
+          const auto dst_row = [&](int64_t t, int r) { return y + ((bi * f + t) * cout + m0 + r) * ys + n0; };
+          // The tile's output rows lie a frame's width apart (often a multiple of 4 KiB), each on a page of its own,
+          // beyond the prefetchers: fetch their lines now, while the products are computed.
+          for (int64_t t = t0; t < t1; ++t)
+            for (int r = 0; r < mr; ++r)
+              for (int j = 0; j < nr; j += 16) __builtin_prefetch(dst_row(t, r) + j, 1, 3);
           for (int i = 0; i < kA; ++i)
             micro(cin, A + i * u_floats + q * panel_floats, 1, MR, vb + u * unit_floats + i * vpanel, m[i], NR, mr,
                   nr, plain);
-          // The last tile's frames past the video are not written.
-          const int64_t bi = s / tiles, t0 = M * (s % tiles);
-          for (int64_t t = t0; t < std::min<int64_t>(t0 + M, f); ++t)
+          const float* const b = bias ? bias + m0 : nullptr;
+          const int frames = int(t1 - t0);
+          if (act == Act::None) {  // straight into place (the models' case)
+            path.temporal_wino_output(M, m[0], kMaxTile, frames, mr, nr, b, accumulate, dst_row(t0, 0), cout * ys, ys);
+            continue;
+          }
+          path.temporal_wino_output(M, m[0], kMaxTile, frames, mr, nr, b, false, out, MR * NR, NR);
+          for (int t = 0; t < frames; ++t)
             for (int r = 0; r < mr; ++r) {
-              const float* rows[kA];
-              for (int i = 0; i < kA; ++i) rows[i] = m[i] + r * NR;
-              output_transform<M>(int(t - t0), rows, nr, bias ? bias[m0 + r] : 0.0f, out);
-              wino_detail::apply_act_inplace(act, out, nr);
-              float* dst = y + ((bi * f + t) * cout + m0 + r) * ys + n0;
+              float* const o = out + (t * MR + r) * NR;
+              float* const dst = dst_row(t0 + t, r);
+              wino_detail::apply_act_inplace(act, o, nr);
               if (accumulate)
-                for (int j = 0; j < nr; ++j) dst[j] += out[j];
+                for (int j = 0; j < nr; ++j) dst[j] += o[j];
               else
-                std::copy_n(out, nr, dst);
+                std::copy_n(o, nr, dst);
             }
         }
       }

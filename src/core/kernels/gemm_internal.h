@@ -72,6 +72,10 @@ struct GemmPath {
   // m = 2 or 4, from m + 2 float32 frames in[t] (rows at stride ld[t]), panel i at dst + i * panel_floats.
   void (*pack_b_temporal_wino)(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
                                int64_t panel_floats) = nullptr;
+  // Its output transform of one micro-tile (temporal_wino_pack.h: temporal_wino_out).
+  void (*temporal_wino_output)(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
+                               const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                               int64_t row_stride) = nullptr;
   // Float32 3x3 stride-1 pad-1 convolution from a per-tile input window (conv_internal.h; null, or false returned:
   // the implicit GEMM above).
   bool (*conv3x3_window)(const float* x, int64_t n, int64_t h, int64_t w, const Operand& weight, const float* bias,
@@ -280,6 +284,16 @@ void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* l
 template <int NR>
 void pack_b_temporal_wino_portable(int m, const float* const* in, const int64_t* ld, int64_t kc, int nr, float* dst,
                                   int64_t panel_floats);
+void temporal_wino_output_avx2(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
+                               const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                               int64_t row_stride);
+void temporal_wino_output_avx512(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
+                                 const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                                 int64_t row_stride);
+template <int NR>
+void temporal_wino_output_portable(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
+                                   const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                                   int64_t row_stride);
 void pack_b_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                  float* dst);
 void pack_a_neon(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int mr, int64_t kc,

@@ -65,6 +65,7 @@ const GemmPath& gemm_path(KernelPath which) {
                        pack_b_portable<kNrPortable>, pack_im2col_shift_portable, nullptr},
                       false));
     p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrPortable>;
+    p.temporal_wino_output = temporal_wino_output_portable<kNrPortable>;
     return p;
   }();
 #if defined(__x86_64__)
@@ -73,6 +74,7 @@ const GemmPath& gemm_path(KernelPath which) {
                                 pack_im2col_shift_avx2, pack_a_temporal6_avx2},
                                false);
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx2;
+    p.temporal_wino_output = temporal_wino_output_avx2;
     p.quantize_a_i8 = quantize_i8_a_avx2;
     p.quantize_b_i8 = quantize_i8_b_avx2;
     p.i8_b_levels = kI8LevelsAvx2B;
@@ -90,6 +92,7 @@ const GemmPath& gemm_path(KernelPath which) {
                                true);
     p.conv3x3_window = conv3x3_window_avx512;
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx512;
+    p.temporal_wino_output = temporal_wino_output_avx512;
     if (cpu_info().avx512_bf16) {
       p.to_bf16_pairs = to_bf16_pairs_avx512;
       p.micro_bf16 = microkernel_avx512_bf16;
@@ -117,6 +120,7 @@ const GemmPath& gemm_path(KernelPath which) {
                       false));
     // NEON is the AArch64 baseline: the compiler vectorises the portable packer with it.
     p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;
+    p.temporal_wino_output = temporal_wino_output_portable<kNrNeon>;
     if (cpu_info().neon_dotprod) {  // the emulation's quads and numbers, multiplied by sdot
       p.micro_i8 = microkernel_neon_sdot;
       p.i8_kernel = "sdot (ARMv8.2 dot product)";

@@ -1,6 +1,6 @@
 #pragma once
-// The B packer of the temporal Winograd (conv_temporal.cpp): the input transform Bᵀd of F(2,3) or F(4,3) along
-// time, written as plain loops over compile-time panel widths so that each kernel path's file compiles it with its
+// The B packer of the temporal Winograd (conv_temporal.cpp), the input transform Bᵀd of F(2,3) or F(4,3) along
+// time, and its output transform, written as plain loops over compile-time panel widths so that each kernel path's file compiles it with its
 // own vector instructions (include after that file's `#pragma GCC target`; everything is file-local).
 #include <cstdint>
 
@@ -72,6 +72,59 @@ void temporal_wino_pack(int m, const float* const* in, const int64_t* ld, int64_
                         int64_t panel_floats) {
   if (m == 2) temporal_wino_rows<NR, 2>(in, ld, kc, nr, dst, panel_floats);
   else temporal_wino_rows<NR, 4>(in, ld, kc, nr, dst, panel_floats);
+}
+
+// o[j] = f(j) + b, or o[j] += f(j) + b, for j < n (n = NR: a compile-time trip count, whole vectors).
+template <int NR, class F>
+inline void temporal_wino_put(float* o, int n, float b, bool accumulate, F f) {
+  const auto run = [&](int len) {
+    if (accumulate)
+      for (int j = 0; j < len; ++j) o[j] += f(j) + b;
+    else
+      for (int j = 0; j < len; ++j) o[j] = f(j) + b;
+  };
+  if (n == NR) run(NR);
+  else run(n);
+}
+
+// Output frame t of one micro-tile row from the products m[i][j]:
+//   F(2,3): y = (M0 + M1 + M2, M1 - M2 - M3)
+//   F(4,3): y = (M0 + (M1 + M2) + (M3 + M4), (M1 - M2) + 2(M3 - M4), (M1 + M2) + 4(M3 + M4),
+//                (M1 - M2) + 8(M3 - M4) + M5)
+template <int NR, int M>
+inline void temporal_wino_out_row(int t, const float* const (&m)[6], int n, float b, bool accumulate, float* o) {
+  const float *__restrict m0 = m[0], *__restrict m1 = m[1], *__restrict m2 = m[2], *__restrict m3 = m[3],
+                               *__restrict m4 = m[4], *__restrict m5 = m[5];
+  if constexpr (M == 2) {
+    if (t == 0) temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return m0[j] + m1[j] + m2[j]; });
+    else temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return m1[j] - m2[j] - m3[j]; });
+  } else if (t == 0) {
+    temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return m0[j] + (m1[j] + m2[j]) + (m3[j] + m4[j]); });
+  } else if (t == 1) {
+    temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return (m1[j] - m2[j]) + 2.0f * (m3[j] - m4[j]); });
+  } else if (t == 2) {
+    temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return (m1[j] + m2[j]) + 4.0f * (m3[j] + m4[j]); });
+  } else {
+    temporal_wino_put<NR>(o, n, b, accumulate,
+                          [&](int j) { return (m1[j] - m2[j]) + 8.0f * (m3[j] - m4[j]) + m5[j]; });
+  }
+}
+
+// The output transform of one micro-tile of F(m,3): products M_i at prod + i * prod_stride (row r at + r * NR);
+// frame t < frames, row r < mr of the tile, lanes j < nr, to dst[t * frame_stride + r * row_stride + j] (added to
+// it with `accumulate`), plus bias[r] (bias may be null).
+template <int NR>
+void temporal_wino_out(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr, const float* bias,
+                       bool accumulate, float* dst, int64_t frame_stride, int64_t row_stride) {
+  for (int t = 0; t < frames; ++t)
+    for (int r = 0; r < mr; ++r) {
+      const float* rows[6] = {};
+      for (int i = 0; i < m + 2; ++i) rows[i] = prod + i * prod_stride + r * NR;
+      float* const o = dst + t * frame_stride + r * row_stride;
+      const float b = bias ? bias[r] : 0.0f;
+      if (m == 2) temporal_wino_out_row<NR, 2>(t, rows, nr, b, accumulate, o);
+      else temporal_wino_out_row<NR, 4>(t, rows, nr, b, accumulate, o);
+    }
 }
 
 }  // namespace

@@ -89,11 +89,22 @@ void pack_b_temporal_wino_portable(int m, const float* const* in, const int64_t*
   temporal_wino_pack<NR>(m, in, ld, kc, nr, dst, panel_floats);
 }
 
+template <int NR>
+void temporal_wino_output_portable(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
+                                   const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                                   int64_t row_stride) {
+  temporal_wino_out<NR>(m, prod, prod_stride, frames, mr, nr, bias, accumulate, dst, frame_stride, row_stride);
+}
+
 template void pack_b_portable<16>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
 template void pack_b_temporal_wino_portable<kNrPortable>(int, const float* const*, const int64_t*, int64_t, int, float*,
                                                         int64_t);
 template void pack_b_temporal_wino_portable<kNrNeon>(int, const float* const*, const int64_t*, int64_t, int, float*,
                                                     int64_t);
+template void temporal_wino_output_portable<kNrPortable>(int, const float*, int64_t, int, int, int, const float*, bool,
+                                                         float*, int64_t, int64_t);
+template void temporal_wino_output_portable<kNrNeon>(int, const float*, int64_t, int, int, int, const float*, bool,
+                                                     float*, int64_t, int64_t);
 template void pack_b_portable<32>(const void*, DType, int64_t, bool, const float*, int64_t, int, float*);
 template void pack_a_portable<kMrPortable>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
 template void pack_a_portable<kMrAvx512>(const void*, DType, int64_t, bool, const float*, int, int64_t, float*);
