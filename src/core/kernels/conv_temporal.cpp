@@ -239,7 +239,9 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
         const int64_t m0 = q * MR;
         const int mr = int(std::min<int64_t>(MR, cout - m0));
         for (int64_t u = 0; u < nu; ++u) {
-          const auto [s, n0, nr] = unit(u0 + u);
+          const conv_detail::PixelPanel un = unit(u0 + u);  // named fields: lambdas below use them
+          const int64_t s = un.group, n0 = un.n0;
+          const int nr = un.nr;
           // The last tile's frames past the video are not written.
           const int64_t bi = s / tiles, t0 = M * (s % tiles), t1 = std::min<int64_t>(t0 + M, f);
           const auto dst_row = [&](int64_t t, int r) { return y + ((bi * f + t) * cout + m0 + r) * ys + n0; };
