@@ -1,7 +1,8 @@
 #pragma once
 // The B packer of the temporal Winograd (conv_temporal.cpp), the input transform Bᵀd of F(2,3) or F(4,3) along
-// time, and its output transform, written as plain loops over compile-time panel widths so that each kernel path's file compiles it with its
-// own vector instructions (include after that file's `#pragma GCC target`; everything is file-local).
+// time, and its output transform, written as plain loops over compile-time panel widths so that each kernel path's
+// file compiles them with its own vector instructions (include after that file's `#pragma GCC target`; everything is
+// file-local).
 #include <cstdint>
 
 namespace egopd::gemm_detail {
@@ -87,14 +88,14 @@ inline void temporal_wino_put(float* o, int n, float b, bool accumulate, F f) {
   else run(n);
 }
 
-// Output frame t of one micro-tile row from the products m[i][j]:
+// Output frame t of one micro-tile row from the products m[i][j] (vectorised behind a run-time check that o does
+// not overlap them):
 //   F(2,3): y = (M0 + M1 + M2, M1 - M2 - M3)
 //   F(4,3): y = (M0 + (M1 + M2) + (M3 + M4), (M1 - M2) + 2(M3 - M4), (M1 + M2) + 4(M3 + M4),
 //                (M1 - M2) + 8(M3 - M4) + M5)
 template <int NR, int M>
 inline void temporal_wino_out_row(int t, const float* const (&m)[6], int n, float b, bool accumulate, float* o) {
-  const float *__restrict m0 = m[0], *__restrict m1 = m[1], *__restrict m2 = m[2], *__restrict m3 = m[3],
-                               *__restrict m4 = m[4], *__restrict m5 = m[5];
+  const float *m0 = m[0], *m1 = m[1], *m2 = m[2], *m3 = m[3], *m4 = m[4], *m5 = m[5];
   if constexpr (M == 2) {
     if (t == 0) temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return m0[j] + m1[j] + m2[j]; });
     else temporal_wino_put<NR>(o, n, b, accumulate, [&](int j) { return m1[j] - m2[j] - m3[j]; });

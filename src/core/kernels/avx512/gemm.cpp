@@ -479,7 +479,8 @@ void pack_b_temporal_wino_avx512(int m, const float* const* in, const int64_t* l
 }
 
 void temporal_wino_output_avx512(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr,
-                             const float* bias, bool accumulate, float* dst, int64_t frame_stride, int64_t row_stride) {
+                                 const float* bias, bool accumulate, float* dst, int64_t frame_stride,
+                                 int64_t row_stride) {
   temporal_wino_out<NR>(m, prod, prod_stride, frames, mr, nr, bias, accumulate, dst, frame_stride, row_stride);
 }
 
