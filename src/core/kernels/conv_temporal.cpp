@@ -213,9 +213,9 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
 #pragma omp parallel num_threads(threads) if (threads > 1)
   {
     float* const vb = V + omp_get_thread_num() * group * unit_floats;
-    constexpr int64_t kMaxTile = gemm_detail::kMaxMR * gemm_detail::kMaxNR;
-    alignas(64) float m[kA][kMaxTile];         // M_i of one micro-tile, row stride NR
-    alignas(64) float out[M * kMaxTile];      // its output frames, where an activation follows
+    using gemm_detail::kMaxTile;
+    alignas(64) float m[kA][kMaxTile];     // M_i of one micro-tile, row stride NR
+    alignas(64) float out[M * kMaxTile];  // its output frames, where an activation follows
     const gemm_detail::TileEpilogue plain;
 #pragma omp for schedule(dynamic)
     for (int64_t g = 0; g < ngroups; ++g) {

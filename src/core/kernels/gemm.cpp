@@ -347,7 +347,7 @@ void run_gemm(const GemmJob& job) {
         // GEGLU: each pair's value and gate tiles into scratch (no C), then combined into glu_out.
         const auto glu_pairs = [&](int64_t p_lo, int64_t p_hi, int64_t ic, int64_t mc, TileEpilogue t,
                                    const float* bias) {
-          alignas(64) float tiles[2][kMaxMR * kMaxNR];  // value, gate
+          alignas(64) float tiles[2][kMaxTile];  // value, gate
           const auto& pairs = static_cast<const GluPairsB&>(*job.b);
           for (int64_t p = p_lo; p < p_hi; p += 2)
             for (int64_t ir = 0; ir < mc; ir += MR) {

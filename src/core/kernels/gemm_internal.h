@@ -28,6 +28,7 @@ constexpr int kMrAvx2 = 6, kNrAvx2 = 16;     // 12 ymm accumulators
 constexpr int kMrAvx512 = 12, kNrAvx512 = 32;  // 24 zmm accumulators: 2 B loads and 12 broadcasts per 24 FMAs
 constexpr int kMrNeon = 8, kNrNeon = 12;       // 24 q-register accumulators: 2 A + 3 B loads per 24 FMLAs
 constexpr int kMaxMR = 12, kMaxNR = 32;
+constexpr int kMaxTile = kMaxMR * kMaxNR;  // floats of the largest micro-tile of any path
 
 // What the micro-kernel does with its MR x NR sum S when storing it to C:
 //   C = act(S + (load_c ? C : 0) + bias) + (add_after ? C : 0), then only the mr x nr valid part is stored.

@@ -117,15 +117,16 @@ inline void temporal_wino_out_row(int t, const float* const (&m)[6], int n, floa
 template <int NR>
 void temporal_wino_out(int m, const float* prod, int64_t prod_stride, int frames, int mr, int nr, const float* bias,
                        bool accumulate, float* dst, int64_t frame_stride, int64_t row_stride) {
-  for (int t = 0; t < frames; ++t)
-    for (int r = 0; r < mr; ++r) {
-      const float* rows[6] = {};
-      for (int i = 0; i < m + 2; ++i) rows[i] = prod + i * prod_stride + r * NR;
+  for (int r = 0; r < mr; ++r) {  // a row's products and bias serve all its frames
+    const float* rows[6] = {};
+    for (int i = 0; i < m + 2; ++i) rows[i] = prod + i * prod_stride + r * NR;
+    const float b = bias ? bias[r] : 0.0f;
+    for (int t = 0; t < frames; ++t) {
       float* const o = dst + t * frame_stride + r * row_stride;
-      const float b = bias ? bias[r] : 0.0f;
       if (m == 2) temporal_wino_out_row<NR, 2>(t, rows, nr, b, accumulate, o);
       else temporal_wino_out_row<NR, 4>(t, rows, nr, b, accumulate, o);
     }
+  }
 }
 
 }  // namespace
