@@ -295,7 +295,9 @@ TEST_P(ConvTest, Same3x3) {
   EXPECT_EQ(run_conv({1, 3, 17, 7, 9, 3, 1, 1}, 10), 0);   // odd H/W, 1 frame
   EXPECT_EQ(run_conv({3, 16, 8, 5, 33, 3, 1, 1}, 11), 0);  // panels straddle rows, W > 16
   EXPECT_EQ(run_conv({2, 8, 6, 32, 32, 3, 1, 1}, 12), 0);  // panels inside rows
-  EXPECT_EQ(run_conv({2, 50, 13, 6, 6, 3, 1, 1}, 13), 0);  // K = 450: several K passes
+  EXPECT_EQ(run_conv({2, 50, 13, 6, 6, 3, 1, 1}, 13), 0);  // K = 450: several K passes on the L1-blocked paths
+  const int64_t deep = gemm_detail::gemm_path().kc / 9 + 2;  // K = 9 * deep: two K passes on every path
+  EXPECT_EQ(run_conv({1, deep, 7, 5, 6, 3, 1, 1}, 20), 0);
   EXPECT_EQ(run_conv({1, 4, 4, 1, 1, 3, 1, 1}, 14), 0);    // 1x1 image: only the centre tap
   EXPECT_EQ(run_conv({2, 4, 5, 2, 3, 3, 1, 1}, 15), 0);
   EXPECT_EQ(run_conv({3, 3, 7, 50, 50, 3, 1, 1}, 16), 0);  // column blocks end inside frames

@@ -108,6 +108,7 @@ struct GemmPath {
   int64_t i8_winograd_min_frame = INT64_MAX;
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
   int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
+  int64_t mc_i8 = 192;  // the same for int8's A blocks
   int64_t nc = 2048;  // columns of a B block shared by the team
 };
 // The GEMM path of kernel_path(), and of any supported path (tests and benchmarks).

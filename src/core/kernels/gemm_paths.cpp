@@ -17,29 +17,49 @@ int64_t env_int(const char* name, int64_t fallback) {
   return end && *end == '\0' && v > 0 ? int64_t(v) : fallback;
 }
 
-// Blocking from the cache sizes (EGOPD_GEMM_KC / EGOPD_GEMM_MC override KC and MC for tuning experiments):
-//  * L1-bound paths (portable, AVX2, NEON): a KC x NR B micro-panel fills 3/4 of L1 (it is reused by every A micro-panel
-//    of a block, which stream from L2), at most 512; an MC x KC A block fills 9/16 of L2. On a 32 KiB L1 / 512 KiB
-//    L2 core this gives the 384 / 192 the AVX2 path was tuned with.
-//  * The AVX-512 path computes twice as fast per cycle, so re-reading C between K passes costs more than keeping
-//    the B micro-panel in L1 saves: its KC x 32 B micro-panel takes 1/6 of L2 (streamed from L2 by the hardware
-//    prefetcher) and its A block 1/4 of L2. On a 1 MiB L2 core: KC = 1344, MC = 48, so the U-Net's 1280-deep
-//    products take one K pass. bench gemm, AMD EPYC Zen 5 class, 2 threads, against KC = 672 / MC = 96 (the best
-//    of an earlier one-thread scan, before the C tile was prefetched and read ahead of its stores): 1024x1280x1280
-//    84 -> 90% of peak, 16384x320x1280 87 -> 92%, 4096x640x2560 85 -> 89%, 1024x10240x1280 81 -> 88%, 640-deep
-//    shapes even.
-GemmPath with_blocking(GemmPath p, bool kc_from_l2) {
+// Blocking from the cache sizes (EGOPD_GEMM_KC / EGOPD_GEMM_MC override KC and MC for tuning experiments).
+enum class BlockRule {
+  // Portable and NEON: a KC x NR B micro-panel fills 3/4 of L1 (it is reused by every A micro-panel of a block,
+  // which stream from L2), at most 512; an MC x KC A block fills 9/16 of L2 (384 / 192 on a 32 KiB L1 / 512 KiB
+  // L2 core).
+  L1Panel,
+  // AVX-512: it computes twice as fast per cycle, so re-reading C between K passes costs more than keeping the B
+  // micro-panel in L1 saves: its KC x 32 B micro-panel takes 1/6 of L2 (streamed from L2 by the hardware
+  // prefetcher) and its A block 1/4 of L2. On a 1 MiB L2 core: KC = 1344, MC = 48, so the U-Net's 1280-deep
+  // products take one K pass. bench gemm, AMD EPYC Zen 5 class, 2 threads, against KC = 672 / MC = 96 (the best
+  // of an earlier one-thread scan, before the C tile was prefetched and read ahead of its stores): 1024x1280x1280
+  // 84 -> 90% of peak, 16384x320x1280 87 -> 92%, 4096x640x2560 85 -> 89%, 1024x10240x1280 81 -> 88%, 640-deep
+  // shapes even.
+  L2PanelQuarterA,
+  // AVX2: the same 1/6 of L2 for its KC x 16 B micro-panel, and an A block of all of L2 (read in place, rows
+  // lda apart; the part that L2 does not hold comes from L3 in the prefetcher's stream). On a 512 KiB L2 core:
+  // KC = 1344, MC = 96 against the L1 rule's 384 / 192. AMD EPYC Zen 3, 2 threads, alternating runs (BENCHMARKS.md,
+  // twenty-fifth session): U-Net fp32 0.89-0.98x the time, bench gemm 1024x1280x1280 0.88x, 1024x1280x5120 0.89x,
+  // 2048x640x2560 0.87x, GEGLU 1024x10240x1280 0.92x, 320- and 640-deep shapes even to 0.96x.
+  L2PanelWholeA,
+};
+
+GemmPath with_blocking(GemmPath p, BlockRule rule) {
   const CpuInfo& ci = cpu_info();
   const int64_t l1 = ci.l1d_bytes(), l2 = ci.l2_bytes();
   const int64_t panel_bytes = p.nr * 4;  // of one k step of a B micro-panel
-  int64_t kc = kc_from_l2 ? std::clamp<int64_t>(l2 / 6 / panel_bytes / 32 * 32, 128, 2048)
-                          : std::clamp<int64_t>(l1 * 3 / 4 / panel_bytes / 16 * 16, 128, 512);
+  const auto a_block_rows = [&](int64_t a_bytes, int64_t kc) {
+    return std::max<int64_t>(a_bytes / (kc * 4) / p.mr * p.mr, p.mr);
+  };
+  const int64_t kc_l1 = std::clamp<int64_t>(l1 * 3 / 4 / panel_bytes / 16 * 16, 128, 512);
+  int64_t kc = rule == BlockRule::L1Panel ? kc_l1 : std::clamp<int64_t>(l2 / 6 / panel_bytes / 32 * 32, 128, 2048);
   kc = std::clamp<int64_t>(env_int("EGOPD_GEMM_KC", kc), 16, 4096);
-  const int64_t a_bytes = kc_from_l2 ? l2 / 4 : l2 * 9 / 16;
-  int64_t mc = std::max<int64_t>(a_bytes / (kc * 4) / p.mr * p.mr, p.mr);
-  mc = std::max<int64_t>(env_int("EGOPD_GEMM_MC", mc) / p.mr * p.mr, p.mr);
+  const int64_t a_bytes = rule == BlockRule::L1Panel ? l2 * 9 / 16 : rule == BlockRule::L2PanelQuarterA ? l2 / 4 : l2;
+  const int64_t mc = a_block_rows(a_bytes, kc);
+  // Int8's A blocks (quads of bytes; its K passes are set by the quantisation groups) keep the rows they had: on
+  // AVX2 the L1 rule's 192, as 96 rows were 4-10% slower (same runs).
+  const int64_t mc_i8 = rule == BlockRule::L2PanelWholeA ? a_block_rows(l2 * 9 / 16, kc_l1) : mc;
+  const auto tuned = [&](int64_t rows) {
+    return std::max<int64_t>(env_int("EGOPD_GEMM_MC", rows) / p.mr * p.mr, p.mr);
+  };
+  p.mc = tuned(mc);
+  p.mc_i8 = tuned(mc_i8);
   p.kc = kc;
-  p.mc = mc;
   p.nc = 2048;
   return p;
 }
@@ -63,7 +83,7 @@ const GemmPath& gemm_path(KernelPath which) {
     GemmPath p = with_emulated_int8<kMrPortable, kNrPortable>(
         with_blocking({kMrPortable, kNrPortable, microkernel_portable, true, pack_a_portable<kMrPortable>,
                        pack_b_portable<kNrPortable>, pack_im2col_shift_portable, nullptr},
-                      false));
+                      BlockRule::L1Panel));
     p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrPortable>;
     p.temporal_wino_output = temporal_wino_output_portable<kNrPortable>;
     return p;
@@ -72,7 +92,7 @@ const GemmPath& gemm_path(KernelPath which) {
   static const GemmPath avx2 = [] {
     GemmPath p = with_blocking({kMrAvx2, kNrAvx2, microkernel_avx2, true, pack_a_avx2, pack_b_avx2,
                                 pack_im2col_shift_avx2, pack_a_temporal6_avx2},
-                               false);
+                               BlockRule::L2PanelWholeA);
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx2;
     p.temporal_wino_output = temporal_wino_output_avx2;
     p.quantize_a_i8 = quantize_i8_a_avx2;
@@ -89,7 +109,7 @@ const GemmPath& gemm_path(KernelPath which) {
   static const GemmPath avx512 = [] {
     GemmPath p = with_blocking({kMrAvx512, kNrAvx512, microkernel_avx512, true, pack_a_avx512, pack_b_avx512,
                                 pack_im2col_shift_avx512, pack_a_temporal12_avx2},
-                               true);
+                               BlockRule::L2PanelQuarterA);
     p.conv3x3_window = conv3x3_window_avx512;
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx512;
     p.temporal_wino_output = temporal_wino_output_avx512;
@@ -117,7 +137,7 @@ const GemmPath& gemm_path(KernelPath which) {
     GemmPath p = with_emulated_int8<kMrNeon, kNrNeon>(
         with_blocking({kMrNeon, kNrNeon, microkernel_neon, false, pack_a_neon, pack_b_neon, pack_im2col_shift_neon,
                        nullptr},
-                      false));
+                      BlockRule::L1Panel));
     // NEON is the AArch64 baseline: the compiler vectorises the portable packer with it.
     p.pack_b_temporal_wino = pack_b_temporal_wino_portable<kNrNeon>;
     p.temporal_wino_output = temporal_wino_output_portable<kNrNeon>;
