@@ -109,6 +109,9 @@ struct GemmPath {
   int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
   int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
   int64_t mc_i8 = 192;  // the same for int8's A blocks
+  // K passes of at most kc_shallow (float32 and bf16) take A blocks of mc_shallow rows instead (0: none).
+  int64_t kc_shallow = 0;
+  int64_t mc_shallow = 192;
   int64_t nc = 2048;  // columns of a B block shared by the team
 };
 // The GEMM path of kernel_path(), and of any supported path (tests and benchmarks).

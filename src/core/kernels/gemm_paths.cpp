@@ -51,14 +51,17 @@ GemmPath with_blocking(GemmPath p, BlockRule rule) {
   kc = std::clamp<int64_t>(env_int("EGOPD_GEMM_KC", kc), 16, 4096);
   const int64_t a_bytes = rule == BlockRule::L1Panel ? l2 * 9 / 16 : rule == BlockRule::L2PanelQuarterA ? l2 / 4 : l2;
   const int64_t mc = a_block_rows(a_bytes, kc);
-  // Int8's A blocks (quads of bytes; its K passes are set by the quantisation groups) keep the rows they had: on
-  // AVX2 the L1 rule's 192, as 96 rows were 4-10% slower (same runs).
-  const int64_t mc_i8 = rule == BlockRule::L2PanelWholeA ? a_block_rows(l2 * 9 / 16, kc_l1) : mc;
   const auto tuned = [&](int64_t rows) {
     return std::max<int64_t>(env_int("EGOPD_GEMM_MC", rows) / p.mr * p.mr, p.mr);
   };
-  p.mc = tuned(mc);
-  p.mc_i8 = tuned(mc_i8);
+  p.mc = p.mc_i8 = tuned(mc);
+  if (rule == BlockRule::L2PanelWholeA) {
+    // Passes no deeper than the L1 rule's KC keep its B micro-panel in L1 and its A blocks (192 rows on a 512 KiB
+    // L2; 96 were 7-8% slower on 320-deep products), and so do int8's A blocks (quads of bytes; their K passes are
+    // set by the quantisation groups; 96 rows were 4-10% slower in the U-Net).
+    p.kc_shallow = kc_l1;
+    p.mc_shallow = p.mc_i8 = tuned(a_block_rows(l2 * 9 / 16, kc_l1));
+  }
   p.kc = kc;
   p.nc = 2048;
   return p;
