@@ -219,7 +219,7 @@ void run_gemm(const GemmJob& job) {
   const bool bf16 = precision() == Precision::Bf16, bf16_pairs = bf16 && path.micro_bf16;
   const KPasses passes = k_passes(path, K);  // plain names below (OpenMP regions take no structured bindings)
   const int64_t i8_group = passes.i8_group, kc_blk = passes.kc_blk, npc = passes.npc;
-  const int64_t kMcMax = int8 ? path.mc_i8 : kc_blk <= path.kc_shallow ? path.mc_shallow : path.mc;
+  const int64_t kMcMax = int8 ? path.mc_i8 : path.a_block_rows(kc_blk);
   // Floats between consecutive packed panels of one lane (per MR rows / NR columns): an int8 panel is written over
   // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
   const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;

@@ -112,6 +112,8 @@ struct GemmPath {
   // K passes of at most kc_shallow (float32 and bf16) take A blocks of mc_shallow rows instead (0: none).
   int64_t kc_shallow = 0;
   int64_t mc_shallow = 192;
+  // Rows of a float32 or bf16 A block for K passes of depth kc.
+  int64_t a_block_rows(int64_t kc) const { return kc <= kc_shallow ? mc_shallow : mc; }
   int64_t nc = 2048;  // columns of a B block shared by the team
 };
 // The GEMM path of kernel_path(), and of any supported path (tests and benchmarks).

@@ -33,9 +33,9 @@ enum class BlockRule {
   L2PanelQuarterA,
   // AVX2: the same 1/6 of L2 for its KC x 16 B micro-panel, and an A block of all of L2 (read in place, rows
   // lda apart; the part that L2 does not hold comes from L3 in the prefetcher's stream). On a 512 KiB L2 core:
-  // KC = 1344, MC = 96 against the L1 rule's 384 / 192. AMD EPYC Zen 3, 2 threads, alternating runs (BENCHMARKS.md,
-  // twenty-fifth session): U-Net fp32 0.89-0.98x the time, bench gemm 1024x1280x1280 0.88x, 1024x1280x5120 0.89x,
-  // 2048x640x2560 0.87x, GEGLU 1024x10240x1280 0.92x, 320- and 640-deep shapes even to 0.96x.
+  // KC = 1344, MC = 96 against the L1 rule's 384 / 192, which passes no deeper than 384 keep (GemmPath::kc_shallow).
+  // AMD EPYC Zen 3, 2 threads, alternating with the L1 rule (BENCHMARKS.md, twenty-fifth session): 1280-deep
+  // products 0.84-0.89x the time, 640-deep 0.82-0.96x, 5120-deep 0.95x; U-Net fp32 0.95x, VAE decode 0.94-0.95x.
   L2PanelWholeA,
 };
 
@@ -56,9 +56,8 @@ GemmPath with_blocking(GemmPath p, BlockRule rule) {
   };
   p.mc = p.mc_i8 = tuned(mc);
   if (rule == BlockRule::L2PanelWholeA) {
-    // Passes no deeper than the L1 rule's KC keep its B micro-panel in L1 and its A blocks (192 rows on a 512 KiB
-    // L2; 96 were 7-8% slower on 320-deep products), and so do int8's A blocks (quads of bytes; their K passes are
-    // set by the quantisation groups; 96 rows were 4-10% slower in the U-Net).
+    // Passes no deeper than the L1 rule's KC keep its B micro-panel in L1 and its A blocks, and int8 keeps them
+    // too (quads of bytes, K passes set by the quantisation groups; 96 rows were 4-10% slower in the U-Net).
     p.kc_shallow = kc_l1;
     p.mc_shallow = p.mc_i8 = tuned(a_block_rows(l2 * 9 / 16, kc_l1));
   }

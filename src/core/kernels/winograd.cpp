@@ -277,7 +277,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   float* const Mb = V + v_floats;
 
   const int64_t npc = ceil_div(K, path.kc), kc_blk = ceil_div(K, npc);
-  const int64_t chunk_rows = std::min<int64_t>(co, std::max<int64_t>(MR, path.mc / MR * MR));
+  const int64_t chunk_rows = std::min<int64_t>(co, std::max<int64_t>(MR, path.a_block_rows(kc_blk) / MR * MR));
   const int64_t nchunks = ceil_div(co, chunk_rows);
   const int64_t cchunks = ceil_div(K, L);
 
