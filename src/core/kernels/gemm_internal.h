@@ -106,15 +106,15 @@ struct GemmPath {
   // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and
   // their exact emulation share.
   int64_t i8_winograd_min_frame = INT64_MAX;
-  int64_t kc = 384;   // depth of a K pass: a KC x NR B micro-panel stays in L1
-  int64_t mc = 192;   // rows of an A block (a multiple of mr): MC x KC floats stay in L2
-  int64_t mc_i8 = 192;  // the same for int8's A blocks
-  // K passes of at most kc_shallow (float32 and bf16) take A blocks of mc_shallow rows instead (0: none).
-  int64_t kc_shallow = 0;
+  // Blocking (gemm_paths.cpp: BlockRule, from the cache sizes).
+  int64_t kc = 384;          // depth of a K pass
+  int64_t mc = 192;          // rows of an A block (a multiple of mr)
+  int64_t kc_shallow = 0;    // float32 and bf16 passes no deeper than this take A blocks of mc_shallow rows
   int64_t mc_shallow = 192;
+  int64_t mc_i8 = 192;       // rows of an int8 A block
+  int64_t nc = 2048;         // columns of a B block shared by the team
   // Rows of a float32 or bf16 A block for K passes of depth kc.
   int64_t a_block_rows(int64_t kc) const { return kc <= kc_shallow ? mc_shallow : mc; }
-  int64_t nc = 2048;  // columns of a B block shared by the team
 };
 // The GEMM path of kernel_path(), and of any supported path (tests and benchmarks).
 const GemmPath& gemm_path();

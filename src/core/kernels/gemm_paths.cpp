@@ -43,14 +43,14 @@ GemmPath with_blocking(GemmPath p, BlockRule rule) {
   const CpuInfo& ci = cpu_info();
   const int64_t l1 = ci.l1d_bytes(), l2 = ci.l2_bytes();
   const int64_t panel_bytes = p.nr * 4;  // of one k step of a B micro-panel
-  const auto a_block_rows = [&](int64_t a_bytes, int64_t kc) {
+  const auto rows_in = [&](int64_t a_bytes, int64_t kc) {  // of an A block of a_bytes at depth kc
     return std::max<int64_t>(a_bytes / (kc * 4) / p.mr * p.mr, p.mr);
   };
   const int64_t kc_l1 = std::clamp<int64_t>(l1 * 3 / 4 / panel_bytes / 16 * 16, 128, 512);
   int64_t kc = rule == BlockRule::L1Panel ? kc_l1 : std::clamp<int64_t>(l2 / 6 / panel_bytes / 32 * 32, 128, 2048);
   kc = std::clamp<int64_t>(env_int("EGOPD_GEMM_KC", kc), 16, 4096);
   const int64_t a_bytes = rule == BlockRule::L1Panel ? l2 * 9 / 16 : rule == BlockRule::L2PanelQuarterA ? l2 / 4 : l2;
-  const int64_t mc = a_block_rows(a_bytes, kc);
+  const int64_t mc = rows_in(a_bytes, kc);
   const auto tuned = [&](int64_t rows) {
     return std::max<int64_t>(env_int("EGOPD_GEMM_MC", rows) / p.mr * p.mr, p.mr);
   };
@@ -59,7 +59,7 @@ GemmPath with_blocking(GemmPath p, BlockRule rule) {
     // Passes no deeper than the L1 rule's KC keep its B micro-panel in L1 and its A blocks, and int8 keeps them
     // too (quads of bytes, K passes set by the quantisation groups; 96 rows were 4-10% slower in the U-Net).
     p.kc_shallow = kc_l1;
-    p.mc_shallow = p.mc_i8 = tuned(a_block_rows(l2 * 9 / 16, kc_l1));
+    p.mc_shallow = p.mc_i8 = tuned(rows_in(l2 * 9 / 16, kc_l1));
   }
   p.kc = kc;
   p.nc = 2048;
