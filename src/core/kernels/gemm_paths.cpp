@@ -103,9 +103,11 @@ const GemmPath& gemm_path(KernelPath which) {
     p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx2>;
     p.micro_i8 = microkernel_avx2_i8;
     p.i8_kernel = "vpmaddubsw (AVX2, B in 63 levels)";
-    // Float32 Winograd beats vpmaddubsw's direct convolution on the VAE's frames and the U-Net's 16x16 and 32x32,
-    // not on its 8x8 (BENCHMARKS.md, twenty-second session); vpdpbusd's beats Winograd on every VAE layer.
-    p.i8_winograd_min_frame = 16;
+    // Float32 Winograd beats vpmaddubsw's direct convolution on the VAE's frames and the U-Net's 16x16 and 32x32
+    // (BENCHMARKS.md, twenty-second session), and on its 16 x 8x8 too since the twenty-fifth's blocking (AMD EPYC
+    // Zen 3, bench conv2d alternating: 1280 -> 1280 0.75x the time, 640 / 1920 / 2560 -> 1280 0.75-0.96x); its 4x4
+    // stay direct as in float32. vpdpbusd's beats Winograd on every VAE layer.
+    p.i8_winograd_min_frame = 8;
     return p;
   }();
   static const GemmPath avx512 = [] {
