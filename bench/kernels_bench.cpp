@@ -113,8 +113,8 @@ void BM_egopd_conv3x3(benchmark::State& state) {
 }
 
 // Temporal (3,1,1) convolution on frame-major activations: args batch, frames, cin, cout, hw. EGOPD_CONV selects
-// the algorithm (auto: Winograd F(4,3) on 32+ pixels per frame of 16 frames, F(2,3) in bf16); GFLOP/s count the
-// direct algorithm's work.
+// the algorithm (auto: Winograd F(4,3) on 32+ pixels per frame of 16 frames, F(2,3) in bf16 and int8); GFLOP/s
+// count the direct algorithm's work.
 void conv_temporal3_bench(benchmark::State& state, egopd::Precision precision) {
   egopd::set_precision(precision);
   const int64_t b = state.range(0), f = state.range(1), cin = state.range(2), cout = state.range(3),
@@ -135,6 +135,7 @@ void conv_temporal3_bench(benchmark::State& state, egopd::Precision precision) {
 }
 void BM_egopd_conv_temporal3(benchmark::State& state) { conv_temporal3_bench(state, egopd::Precision::Fp32); }
 void BM_egopd_conv_temporal3_bf16(benchmark::State& state) { conv_temporal3_bench(state, egopd::Precision::Bf16); }
+void BM_egopd_conv_temporal3_int8(benchmark::State& state) { conv_temporal3_bench(state, egopd::Precision::Int8); }
 
 #if EGOPD_BENCH_ONEDNN
 // oneDNN convolution, f32, bias, forward inference. range(5): 0 = direct on plain NCHW activations (our layout),
@@ -214,6 +215,16 @@ BENCHMARK(BM_egopd_conv_temporal3_bf16)
     ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
     ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
     ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
+    ->ArgNames({"b", "f", "cin", "cout", "hw"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_egopd_conv_temporal3_int8)
+    ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
+    ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
+    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
+    ->Args({1, 16, 1280, 1280, 16})  // U-Net 4x4
+    ->Args({1, 16, 512, 512, 1024})  // VAE decoder 32x32
+    ->Args({1, 16, 128, 128, 2048})  // VAE decoder's pixel tiles
     ->ArgNames({"b", "f", "cin", "cout", "hw"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);

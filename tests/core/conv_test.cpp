@@ -202,31 +202,52 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
           double r = act_ref(c.act, s);
           const double lip = c.act == Act::None ? 1.0 : 1.2;
           double tl = lip * 2.0 * double(3 * c.cin + 3) * kU * sa + 8 * kU * std::fabs(r);
-          if (tile && c.bf16) {  // F(2,3) on bfloat16 operands: s = sum_i AT[r0][i] sum_c bf16(U_i) bf16(V_i)
-            if (tile != 2) ADD_FAILURE() << "bf16 takes F(2,3) only, not " << algo;
+          bool int8_bounded = false;  // Int8's bound already in tl
+          if (tile && (c.bf16 || c.int8)) {
+            // F(2,3) on bfloat16 operands, s = sum_i AT[r0][i] sum_c bf16(U_i) bf16(V_i); or on int8 ones, s the same
+            // sums of float32 U_i V_i within the quantisation bound of each product (U_i quantised per output
+            // channel, V_i per pixel, as the int8 GEMM quantises A and B).
+            if (tile != 2) ADD_FAILURE() << "bf16 and int8 take F(2,3) only, not " << algo;
             const int64_t r0 = t % 2, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
             const TemporalWinogradMatrices& T = temporal_matrices(2);
+            const auto operand = [&](float v) { return c.bf16 ? round_bf16(v) : double(v); };
             s = bias[size_t(o)];
             double sw = 0;
+            // The transforms in float32, as their one rounding each defines them (halving is exact).
+            const auto filter_transform = [&](int64_t ci, float* u) {
+              float w[3];
+              for (int k = 0; k < 3; ++k) w[k] = float(wt.value[size_t((o * c.cin + ci) * 3 + k)]);
+              const float h = 0.5f * (w[0] + w[2]);
+              u[0] = w[0], u[1] = h + 0.5f * w[1], u[2] = h - 0.5f * w[1], u[3] = w[2];
+            };
+            Int8Bound wq8[4];
+            double u_max[4] = {};  // of output channel o's U_i over all channels: at least each group's
             for (int64_t ci = 0; ci < c.cin; ++ci) {
-              float d[4], w[3];
+              float u[4];
+              filter_transform(ci, u);
+              for (int i = 0; i < 4; ++i) u_max[i] = std::max(u_max[i], std::fabs(double(u[i])));
+            }
+            for (int64_t ci = 0; ci < c.cin; ++ci) {
+              float d[4], u[4];
               for (int k = 0; k < 4; ++k) {
                 const int64_t ts = t0 + k;
                 d[k] = ts < 0 || ts >= c.f ? 0.0f : x[size_t(((bi * c.f + ts) * c.cin + ci) * c.hw + p)];
               }
-              for (int k = 0; k < 3; ++k) w[k] = float(wt.value[size_t((o * c.cin + ci) * 3 + k)]);
-              // The transforms in float32, as their one rounding each defines them (halving is exact).
-              const float h = 0.5f * (w[0] + w[2]);
-              const float u[4] = {w[0], h + 0.5f * w[1], h - 0.5f * w[1], w[2]};
+              filter_transform(ci, u);
               const float v[4] = {d[0] - d[2], d[1] + d[2], d[2] - d[1], d[1] - d[3]};
               for (int i = 0; i < 4; ++i) {
-                const double m = round_bf16(u[i]) * round_bf16(v[i]);
+                const double m = operand(u[i]) * operand(v[i]);
                 s += T.at[r0][i] * m;
                 sw += std::fabs(T.at[r0][i] * m);
+                wq8[i].add(u[i], v[i]);
               }
             }
             r = act_ref(c.act, s);
             tl = lip * 2.0 * double(c.cin + 4) * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
+            if (c.int8) {
+              for (int i = 0; i < 4; ++i) tl += lip * std::fabs(T.at[r0][i]) * wq8[i].bound(u_max[i]);
+              int8_bounded = true;
+            }
           } else if (tile) {  // Winograd F(m,3): the products |AT||G w||BT d| bound the float32 error
             const TemporalWinogradMatrices& T = temporal_matrices(tile);
             const int64_t r0 = t % tile, t0 = t - r0 - 1;  // output r0 of its tile; d_k = x[t0 + k]
@@ -250,7 +271,7 @@ int run_temporal(const TemporalCase& c, uint32_t seed) {
             const double steps = double(c.cin) + (tile == 2 ? 8 : 14);
             tl = lip * 2.0 * steps * kU * (sw + std::fabs(bias[size_t(o)])) + 8 * kU * std::fabs(r);
           }
-          if (c.int8) tl += lip * q8.bound(w_max[size_t(o)]);
+          if (c.int8 && !int8_bounded) tl += lip * q8.bound(w_max[size_t(o)]);
           if (c.accumulate) {
             r += y0[idx];
             tl += 4 * kU * (std::fabs(y0[idx]) + std::fabs(r));
@@ -445,8 +466,8 @@ TEST_P(ConvTest, Bf16TemporalWinograd) {
   EXPECT_EQ(conv_temporal3_algorithm(16, 128, 128, 2048), "direct");  // F(2,3) in float32
 }
 
-// Precision::Int8 (3x3 convolutions then stay direct): the same cases within the quantisation bound; and the
-// result must differ from float32 (the operands really were quantised).
+// Precision::Int8: the same cases within the quantisation bound (the 3x3 ones here direct, temporal ones direct or
+// Winograd F(2,3)); and the result must differ from float32 (the operands really were quantised).
 TEST_P(ConvTest, Int8Compute) {
   uint32_t seed = 180;
   for (DType dt : {DType::F32, DType::F16, DType::BF16, DType::I8}) {
@@ -466,6 +487,32 @@ TEST_P(ConvTest, Int8Compute) {
     TemporalCase wide{1, 4, 200, 8, 20, dt};  // K = 600
     wide.int8 = true;
     EXPECT_EQ(run_temporal(wide, seed++), 0);
+    // Winograd F(2,3) along time on quantised U_i and V_i (forced, and Auto: on 16+ channels and 32+ pixels where
+    // the path takes it, GemmPath::i8_temporal_winograd, else direct): both tiles of a video of 5 frames whose last
+    // tile is half past it, one and two videos, a residual with an activation, two quantisation groups (cin 600),
+    // and a 16-frame clip.
+    for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
+      set_conv_algo(algo);
+      for (TemporalCase w : {TemporalCase{2, 5, 20, 13, 37, dt}, TemporalCase{1, 16, 40, 8, 33, dt, Act::SiLU, true},
+                             TemporalCase{1, 4, 600, 7, 40, dt}, TemporalCase{1, 2, 17, 6, 70, dt}}) {
+        w.int8 = true;
+        EXPECT_EQ(run_temporal(w, seed++), 0) << conv_algo_name(algo);
+      }
+    }
+  }
+  {
+    const test::PrecisionGuard int8(Precision::Int8);
+    EXPECT_EQ(conv_temporal3_algorithm(16, 320, 320, 1024),
+              gemm_detail::gemm_path().i8_temporal_winograd ? "winograd F(2,3)" : "direct");
+  }
+  {  // forced Winograd on 1 to 3 input channels: the int8 panels' scales and sums need rows beyond cin
+    set_conv_algo(ConvAlgo::Winograd);
+    for (int64_t cin : {1, 2, 3}) {
+      TemporalCase t{1, 3, cin, 5, 19};
+      t.int8 = true;
+      EXPECT_EQ(run_temporal(t, seed++), 0);
+    }
+    set_conv_algo(ConvAlgo::Auto);
   }
   std::mt19937 rng(5);
   const std::vector<float> x = random_vec(size_t(2 * 16 * 8 * 8), rng), w = random_vec(size_t(8 * 16 * 9), rng);

@@ -43,7 +43,8 @@ std::string conv2d_algorithm(const Conv2dGeom& g, int64_t n, int64_t h, int64_t 
 // Temporal convolution, kernel (3,1,1), padding (1,0,0) with zeros in time, on frame-major activations:
 // x [b*f, cin, hw] -> y [b*f, cout, hw], y[b,t,o] = bias[o] + sum_{c,k} W[o,c,k] x[b,t+k-1,c].
 // weight is the stored [cout, cin, 3, 1, 1] tensor. Under ConvAlgo Winograd, or Auto on 32+ pixels per frame and
-// 16+ channels, float32 compute with two frames or more: Winograd F(2,3) along time (conv_temporal.cpp).
+// 16+ channels, with two frames or more: Winograd F(2,3) or F(4,3) along time (conv_temporal.cpp; bf16 and int8:
+// F(2,3) on rounded or quantised transforms, int8 under Auto only where GemmPath::i8_temporal_winograd).
 // y_stride: floats between consecutive output rows (0: hw), e.g. to write a tile of pixels into a whole video.
 void conv_temporal3(const float* x, int64_t b, int64_t f, int64_t cin, int64_t hw, const Operand& weight,
                     const float* bias, int64_t cout, float* y, Act act = Act::None, bool accumulate = false,

@@ -11,7 +11,10 @@
 //                (M1 - M2) + 8(M3 - M4) + M5)
 //   M_i = U_i · V_i                                                   (m + 2 products [cout, cin] x [cin, px])
 // V exists only as the micro-kernel's B panels, M only as its tiles. Under Precision::Bf16: F(2,3) only, with U and V
-// rounded to bfloat16 as the products' operands (the transforms themselves in float32).
+// rounded to bfloat16 as the products' operands (the transforms themselves in float32). Under Precision::Int8:
+// F(2,3) only, U and V quantised as the int8 GEMM quantises its packed panels (gemm.h), U_i per output channel and
+// V_i per pixel, in int8_group(cin) groups of channels: the transformed values are the products' operands, as the
+// stored weights and frames are the direct convolution's.
 #include <omp.h>
 
 #include <algorithm>
@@ -101,10 +104,11 @@ struct TemporalB : gemm_detail::BSource {
 constexpr int64_t kMinPixels = 32;
 
 bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
-  // One frame: the centre tap only; int8: the direct GEMM's (its per-row scales are of the stored weights); no input
-  // channel: nothing to transform.
-  if (f < 2 || cin < 1 || precision() == Precision::Int8) return false;
+  // One frame: the centre tap only; no input channel: nothing to transform.
+  if (f < 2 || cin < 1) return false;
   const ConvAlgo algo = conv_algo();
+  if (algo == ConvAlgo::Auto && precision() == Precision::Int8 && !gemm_detail::gemm_path().i8_temporal_winograd)
+    return false;
   // Bf16 (F(2,3) on vdpbf16ps) gains from 256 input channels on; on the VAE decoder's 128 its transforms outweigh
   // the products saved (AMD EPYC Zen 4, 16 frames of 2048-pixel tiles: 2.78 s direct, 3.35 s F(2,3)).
   const int64_t min_cin = precision() == Precision::Bf16 ? 256 : 16;
@@ -119,7 +123,8 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
 int temporal_tile(int64_t f, int64_t cin) {
   // Bf16 rounds the transformed operands: F(2,3)'s add and halve values and lose ~1.3x the direct bfloat16
   // convolution's accuracy, F(4,3)'s scale them by up to 8 and lose ~3.8x (float64 simulation over 320 channels).
-  if (precision() == Precision::Bf16) return 2;
+  // Int8 quantises them, with the same reasoning.
+  if (precision() != Precision::Fp32) return 2;
   if (const int forced = conv_detail::temporal_winograd_tile()) return forced;
   return cin >= 256 && 6 * ((f + 3) / 4) < 4 * ((f + 1) / 2) ? 4 : 2;
 }
@@ -163,11 +168,16 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   // The filter transform, straight into the micro-kernel's A panels: panel (i, q) holds rows q*MR .. of U_i,
   // element (r, c) at [c*MR + r] (rows past cout zero). The taps are packed by the direct convolution's A packer
   // (vectorised per path) into three panels of the thread's, then combined.
-  const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * cin, u_floats = mpanels * panel_floats;
   // Bf16: the transformed filters and frames are the products' inputs, rounded to bfloat16 (pairs for the native
-  // micro-kernel, float32 values of bfloat16 precision for the emulated one).
+  // micro-kernel, float32 values of bfloat16 precision for the emulated one). Int8: quantised in place, each panel
+  // then in the int8 GEMM's group layout, which needs a few more rows than cin when cin is tiny (as gemm.cpp's).
   const bool bf16 = precision() == Precision::Bf16, pairs = bf16 && path.micro_bf16;
-  const gemm_detail::MicroKernel micro = pairs ? path.micro_bf16 : path.micro;
+  const bool int8 = precision() == Precision::Int8;
+  const int64_t k_rows = int8 ? (cin + 3) / 4 * 4 + 8 : cin;  // float rows of one panel
+  const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * k_rows, u_floats = mpanels * panel_floats;
+  gemm_detail::TileEpilogue plain;
+  if (int8) plain.i8_group = int8_group(cin);
+  const gemm_detail::MicroKernel micro = int8 ? path.micro_i8 : pairs ? path.micro_bf16 : path.micro;
   const auto to_bf16 = [&](float* panel, int width) {
     if (pairs) path.to_bf16_pairs(panel, width, cin);
     else gemm_detail::round_to_bf16(panel, width * cin);
@@ -187,9 +197,12 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
       taps.pack(path, q * MR, mr, 0, cin, w0);
       taps.pack(path, q * MR, mr, cin, cin, w1);
       taps.pack(path, q * MR, mr, 2 * cin, cin, w2);
-      filter_transform<M>(w0, w1, w2, panel_floats, A + q * panel_floats, u_floats);
-      if (bf16)
-        for (int i = 0; i < kA; ++i) to_bf16(A + i * u_floats + q * panel_floats, MR);
+      filter_transform<M>(w0, w1, w2, MR * cin, A + q * panel_floats, u_floats);
+      for (int i = 0; i < kA; ++i) {
+        float* const u = A + i * u_floats + q * panel_floats;
+        if (bf16) to_bf16(u, MR);
+        if (int8) path.quantize_a_i8(u, u, MR, cin, plain.i8_group);
+      }
     }
   }
   // Units of work: one pixel panel (NR pixels) of one tile, whose V_i panels are packed once and multiplied by every
@@ -200,7 +213,7 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   const int64_t panels_per_seg = (hw + NR - 1) / NR, units = segs * panels_per_seg;
   // Panels one cache line more than their floats apart: the packer writes all kA of them row by row, which at a
   // power-of-two distance (128 channels: 16 KiB) would share one L1 set.
-  const int64_t vpanel = cin * NR + 16, unit_floats = kA * vpanel;
+  const int64_t vpanel = k_rows * NR + 16, unit_floats = kA * vpanel;
   const int64_t group = std::clamp<int64_t>(conv_detail::temporal_winograd_bytes() / (unit_floats * 4), 1, 8);
   const int64_t ngroups = (units + group - 1) / group;
   int threads = omp_in_parallel() ? 1 : num_threads();
@@ -216,7 +229,6 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
     using gemm_detail::kMaxTile;
     alignas(64) float m[kA][kMaxTile];     // M_i of one micro-tile, row stride NR
     alignas(64) float out[M * kMaxTile];  // its output frames, where an activation follows
-    const gemm_detail::TileEpilogue plain;
 #pragma omp for schedule(dynamic)
     for (int64_t g = 0; g < ngroups; ++g) {
       const int64_t u0 = g * group, nu = std::min(group, units - u0);
@@ -232,8 +244,11 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
           ld[k] = inside ? hw : 0;
         }
         path.pack_b_temporal_wino(M, in, ld, cin, un.nr, vb + u * unit_floats, vpanel);
-        if (bf16)
-          for (int i = 0; i < kA; ++i) to_bf16(vb + u * unit_floats + i * vpanel, NR);
+        for (int i = 0; i < kA; ++i) {
+          float* const v = vb + u * unit_floats + i * vpanel;
+          if (bf16) to_bf16(v, NR);
+          if (int8) path.quantize_b_i8(v, v, NR, cin, plain.i8_group);
+        }
       }
       for (int64_t q = 0; q < mpanels; ++q) {
         const int64_t m0 = q * MR;

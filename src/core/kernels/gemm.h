@@ -63,8 +63,10 @@ void gemm_geglu(int64_t M, int64_t D, int64_t K, const Operand& A, const Operand
 //         signed byte products are summed in pairs in int16, which 127 levels would overflow. B is a linear
 //         layer's weight and a convolution's input pixels; its error on that path is about twice as large.
 //         3x3 convolutions that run Winograd under Int8 (winograd.h: forced, or --conv auto on the AVX2 path) quantise
-//         with the same rule but per input pixel, and multiply in float32. A NaN in a row of A or column of B makes
-//         its scale NaN, so its outputs are NaN as in float32 (an inf makes them non-finite).
+//         with the same rule but per input pixel, and multiply in float32. Temporal convolutions that run Winograd
+//         F(2,3) under Int8 (conv.h: forced, or --conv auto on the AVX2 path) quantise their transformed filters (A,
+//         per output channel) and transformed frames (B, per pixel) by this rule. A NaN in a row of A or column of B
+//         makes its scale NaN, so its outputs are NaN as in float32 (an inf makes them non-finite).
 // Norms, activations and the softmax stay float32 in every mode; attention's two products follow Bf16 (attention.h)
 // and stay float32 under Int8.
 enum class Precision : uint8_t { Fp32, Bf16, Int8 };

@@ -106,6 +106,9 @@ struct GemmPath {
   // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and
   // their exact emulation share.
   int64_t i8_winograd_min_frame = INT64_MAX;
+  // Under Int8 and --conv auto, temporal convolutions take Winograd F(2,3) on quantised transformed operands
+  // (conv_temporal.cpp) where it beats the int8 direct convolution (measured on AVX2's vpmaddubsw only).
+  bool i8_temporal_winograd = false;
   // Blocking (gemm_paths.cpp: BlockRule, from the cache sizes).
   int64_t kc = 384;          // depth of a K pass
   int64_t mc = 192;          // rows of an A block (a multiple of mr)

@@ -108,6 +108,9 @@ const GemmPath& gemm_path(KernelPath which) {
     // Zen 3, bench conv2d alternating: 1280 -> 1280 0.75x the time, 640 / 1920 / 2560 -> 1280 0.75-0.96x); its 4x4
     // stay direct as in float32. vpdpbusd's beats Winograd on every VAE layer.
     p.i8_winograd_min_frame = 8;
+    // Temporal convolutions: F(2,3) on quantised transforms 0.72-0.83x the time of the int8 direct convolution on the
+    // U-Net's and the VAE decoder's layers (AMD EPYC Zen 3, kernels_bench alternating, 128-1280 channels).
+    p.i8_temporal_winograd = true;
     return p;
   }();
   static const GemmPath avx512 = [] {
