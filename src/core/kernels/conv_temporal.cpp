@@ -170,10 +170,10 @@ void conv_temporal3_winograd(const float* x, int64_t b, int64_t f, int64_t cin, 
   // (vectorised per path) into three panels of the thread's, then combined.
   // Bf16: the transformed filters and frames are the products' inputs, rounded to bfloat16 (pairs for the native
   // micro-kernel, float32 values of bfloat16 precision for the emulated one). Int8: quantised in place, each panel
-  // then in the int8 GEMM's group layout, which needs a few more rows than cin when cin is tiny (as gemm.cpp's).
+  // then in the int8 GEMM's group layout.
   const bool bf16 = precision() == Precision::Bf16, pairs = bf16 && path.micro_bf16;
   const bool int8 = precision() == Precision::Int8;
-  const int64_t k_rows = int8 ? (cin + 3) / 4 * 4 + 8 : cin;  // float rows of one panel
+  const int64_t k_rows = int8 ? gemm_detail::i8_panel_rows(cin) : cin;  // float rows of one panel
   const int64_t mpanels = (cout + MR - 1) / MR, panel_floats = MR * k_rows, u_floats = mpanels * panel_floats;
   gemm_detail::TileEpilogue plain;
   if (int8) plain.i8_group = int8_group(cin);

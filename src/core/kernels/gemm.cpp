@@ -222,7 +222,7 @@ void run_gemm(const GemmJob& job) {
   const int64_t kMcMax = int8 ? path.mc_i8 : path.a_block_rows(kc_blk);
   // Floats between consecutive packed panels of one lane (per MR rows / NR columns): an int8 panel is written over
   // its float32 panel and ends in its lanes' scales and sums, which need a few more rows when kc is tiny.
-  const int64_t kc_slot = int8 ? (kc_blk + 3) / 4 * 4 + 8 : kc_blk;
+  const int64_t kc_slot = int8 ? i8_panel_rows(kc_blk) : kc_blk;
   if (job.ep.accumulate && job.ep.act != Act::None && npc > 1) return run_gemm_via_temp(job);
   const bool glu = job.glu_out != nullptr;
   if (glu && glu_needs_scratch(path, job.seg_cols / 2, K)) return run_geglu_via_scratch(job);

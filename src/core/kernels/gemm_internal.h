@@ -150,6 +150,9 @@ void pack_b_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const f
 // extends past the floats of its group (group > 8 when there are several), so each group is written over floats
 // already read.
 inline int64_t i8_slot_rows(int64_t len) { return (len + 3) / 4; }
+// Float rows to leave for a panel of kc rows quantised in place: its regions' scales and sums need a few more than kc
+// when kc is tiny.
+inline int64_t i8_panel_rows(int64_t kc) { return (kc + 3) / 4 * 4 + 8; }
 inline int64_t i8_region(int width, int64_t group) { return (i8_slot_rows(group) + 2) * width; }
 struct I8Group {
   const int32_t* slots;
