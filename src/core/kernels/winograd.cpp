@@ -14,6 +14,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -185,8 +187,36 @@ struct Int8Scales {
   }
 };
 
+// Largest magnitude of the n stored weights from element e0 of `w` (of output channel o), as float32 exactly as the
+// packers convert them: NaN if one is NaN. On the stored bits (the magnitudes of IEEE values order as their bits
+// without the sign, NaN above inf), so that one plain integer loop serves every dtype; I8: max |q| times the
+// channel's scale (a product by a positive scale keeps the order).
+float stored_abs_max(const Operand& w, int64_t e0, int64_t n, int64_t o) {
+  const auto max_bits = [&](const auto* p, auto mask) {
+    decltype(mask) m = 0;
+    for (int64_t i = 0; i < n; ++i) m = std::max<decltype(mask)>(m, p[e0 + i] & mask);
+    return m;
+  };
+  switch (w.dtype) {
+    case DType::F32: {
+      const uint32_t bits = max_bits(static_cast<const uint32_t*>(w.data), uint32_t(0x7fffffff));
+      float m;
+      std::memcpy(&m, &bits, sizeof m);
+      return m;
+    }
+    case DType::F16: return half_to_float(max_bits(static_cast<const uint16_t*>(w.data), uint16_t(0x7fff)));
+    case DType::BF16: return bf16_to_float(max_bits(static_cast<const uint16_t*>(w.data), uint16_t(0x7fff)));
+    default: {
+      const int8_t* q = static_cast<const int8_t*>(w.data) + e0;
+      int m = 0;
+      for (int64_t i = 0; i < n; ++i) m = std::max(m, std::abs(int(q[i])));
+      return float(m) * w.scale[o];
+    }
+  }
+}
+
 Int8Scales int8_scales(const float* x, int64_t n, int64_t plane, int64_t cin, const Operand& weight, int64_t cout,
-                       int mr, const gemm_detail::GemmPath& path) {
+                       int mr) {
   Int8Scales s;
   const int64_t group = int8_group(cin), groups = ceil_div(cin, group);
   s.x_group = group;
@@ -219,22 +249,14 @@ Int8Scales int8_scales(const float* x, int64_t n, int64_t plane, int64_t cin, co
           s.x_scale[size_t(fg * plane + p0 + p)] = gemm_detail::i8_scale(m[p]);
         }
       }
-    // The weights' groups through the path's A packer (their dtype converted as the filter transform's are).
-    alignas(64) float buf[kInt8Block * wino_detail::kMaxRows];
+    // The weights' groups: runs of their output channel's row of the stored [cout, cin * 9] weight.
 #pragma omp for collapse(2) schedule(static)
-    for (int64_t op = 0; op < panels; ++op)
+    for (int64_t o = 0; o < cout; ++o)
       for (int64_t g = 0; g < w_groups; ++g) {
-        const int64_t o = op * mr, k0 = g * s.w_group, len = std::min(s.w_group, K - k0);
-        const int rows = int(std::min<int64_t>(mr, cout - o));
-        path.pack_a(weight.element(o * K + k0), weight.dtype, K, false,
-                    weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len, buf);
-        float m[wino_detail::kMaxRows] = {};
-        for (int64_t k = 0; k < len; ++k)
-          for (int i = 0; i < mr; ++i) m[i] = gemm_detail::nan_sticky_max(m[i], std::fabs(buf[k * mr + i]));
-        for (int i = 0; i < rows; ++i) {
-          s.w_inv[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_inverse(m[i]);
-          s.w_scale[size_t(g * s.w_ld + o + i)] = gemm_detail::i8_scale(m[i]);
-        }
+        const int64_t k0 = g * s.w_group;
+        const float m = stored_abs_max(weight, o * K + k0, std::min(s.w_group, K - k0), o);
+        s.w_inv[size_t(g * s.w_ld + o)] = gemm_detail::i8_inverse(m);
+        s.w_scale[size_t(g * s.w_ld + o)] = gemm_detail::i8_scale(m);
       }
   }
   return s;
@@ -263,7 +285,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const wino_detail::InputPanelFn input_panel = kern.input[int(rounding)][ti];
   const wino_detail::FilterFn filter_rows = kern.filter[int(rounding)][ti];
   const bool int8 = rounding == wino_detail::OperandRounding::Int8 && cin > 0;
-  const Int8Scales q8 = int8 ? int8_scales(x, n, h * w, cin, weight, cout, MR, path) : Int8Scales{};
+  const Int8Scales q8 = int8 ? int8_scales(x, n, h * w, cin, weight, cout, MR) : Int8Scales{};
   const wino_detail::InputQuant input_quant = q8.input();
 
   const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
