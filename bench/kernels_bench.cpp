@@ -5,9 +5,11 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <random>
 #include <string>
 #include <vector>
@@ -198,36 +200,25 @@ BENCHMARK(BM_egopd_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 1); });
 #if EGOPD_BENCH_ONEDNN
 BENCHMARK(BM_onednn_conv3x3)->Apply([](auto* b) { conv_shapes(b, 0, 2); });
 #endif
-BENCHMARK(BM_egopd_conv_temporal3)
-    ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
-    ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
-    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
-    ->Args({1, 16, 1280, 1280, 16})  // U-Net 4x4
-    ->Args({1, 16, 512, 512, 1024})  // VAE decoder 32x32
-    ->Args({1, 16, 256, 256, 16384})  // VAE decoder 128x128
-    ->Args({1, 16, 128, 128, 65536})  // VAE decoder 256x256
-    ->Args({1, 16, 128, 128, 2048})  // ... in the pixel tiles its temporal blocks run
-    ->Args({1, 16, 512, 512, 512})
-    ->ArgNames({"b", "f", "cin", "cout", "hw"})
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_egopd_conv_temporal3_bf16)
-    ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
-    ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
-    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
-    ->ArgNames({"b", "f", "cin", "cout", "hw"})
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_egopd_conv_temporal3_int8)
-    ->Args({1, 16, 320, 320, 1024})  // U-Net 32x32
-    ->Args({1, 16, 640, 640, 256})   // U-Net 16x16
-    ->Args({1, 16, 1280, 1280, 64})  // U-Net 8x8
-    ->Args({1, 16, 1280, 1280, 16})  // U-Net 4x4
-    ->Args({1, 16, 512, 512, 1024})  // VAE decoder 32x32
-    ->Args({1, 16, 128, 128, 2048})  // VAE decoder's pixel tiles
-    ->ArgNames({"b", "f", "cin", "cout", "hw"})
-    ->UseRealTime()
-    ->Unit(benchmark::kMillisecond);
+// Temporal shapes: the first `count` of the U-Net's and the VAE decoder's layers, 16 frames.
+void temporal_shapes(benchmark::internal::Benchmark* b, size_t count) {
+  static const std::vector<int64_t> shapes[] = {
+      {1, 16, 320, 320, 1024},    // U-Net 32x32
+      {1, 16, 640, 640, 256},     // U-Net 16x16
+      {1, 16, 1280, 1280, 64},    // U-Net 8x8
+      {1, 16, 1280, 1280, 16},    // U-Net 4x4
+      {1, 16, 512, 512, 1024},    // VAE decoder 32x32
+      {1, 16, 128, 128, 2048},    // VAE decoder 256x256, in the pixel tiles its temporal blocks run
+      {1, 16, 256, 256, 16384},   // VAE decoder 128x128
+      {1, 16, 128, 128, 65536},   // VAE decoder 256x256
+      {1, 16, 512, 512, 512}};
+  for (size_t i = 0; i < std::min(count, std::size(shapes)); ++i) b->Args(shapes[i]);
+  b->ArgNames({"b", "f", "cin", "cout", "hw"})->UseRealTime()->Unit(benchmark::kMillisecond);
+}
+
+BENCHMARK(BM_egopd_conv_temporal3)->Apply([](auto* b) { temporal_shapes(b, 9); });
+BENCHMARK(BM_egopd_conv_temporal3_bf16)->Apply([](auto* b) { temporal_shapes(b, 3); });
+BENCHMARK(BM_egopd_conv_temporal3_int8)->Apply([](auto* b) { temporal_shapes(b, 6); });
 
 }  // namespace
 
