@@ -330,24 +330,13 @@ template void pack_a_i8_rows_avx2<kMrAvx512>(const float*, int64_t, int, int64_t
 #define EGOPD_STORE_ASM(i, c0, c1)                 \
   "vmovdqa %%ymm" #c0 ", " #i "*64(%[acc])\n\t"    \
   "vmovdqa %%ymm" #c1 ", " #i "*64+32(%[acc])\n\t"
-// Every path adds a group as sum = fma(float(int32 sum - correction), s_row * s_col, sum): explicit, so that no
-// path's compiler contraction makes the results differ.
-#define EGOPD_SCALE(i)                                                                                        \
-  {                                                                                                           \
-    float* row = sum + (i) * NR;                                                                              \
-    const __m256 sa = _mm256_broadcast_ss(pa.scale + (i));                                                    \
-    const __m256i s0 = _mm256_sub_epi32(_mm256_load_si256((const __m256i*)(acc + (i) * NR)), corr0);          \
-    const __m256i s1 = _mm256_sub_epi32(_mm256_load_si256((const __m256i*)(acc + (i) * NR + 8)), corr1);      \
-    _mm256_store_ps(row, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s0), _mm256_mul_ps(sa, sb0), _mm256_load_ps(row))); \
-    _mm256_store_ps(row + 8, _mm256_fmadd_ps(_mm256_cvtepi32_ps(s1), _mm256_mul_ps(sa, sb1), _mm256_load_ps(row + 8))); \
-  }
-
 void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, const float* b_panel, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep) {
   static_assert(MR == 6 && NR == 16, "the assembly below is the 6 x 16 tile");
   prefetch_c(c, ldc, mr);
-  alignas(32) float sum[MR * NR] = {};  // float sums of the groups (gemm_internal.h: I8Group)
+  alignas(32) float sum[MR * NR];  // float sums of the groups before the last (gemm_internal.h: I8Group)
   alignas(32) int32_t acc[MR * NR];
+  const __m256 zero = _mm256_setzero_ps();
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += ep.i8_group) {
     const I8Group pa(a_panel, MR, ep.i8_group, g), pb(b_panel, NR, ep.i8_group, g);
     int64_t quads = i8_slot_rows(std::min(ep.i8_group, kc - k0));
@@ -379,17 +368,27 @@ void microkernel_avx2_i8(int64_t kc, const float* a_panel, int64_t, int64_t, con
         : "cc", "memory", "xmm0", "xmm1", "xmm2", "xmm3", "xmm4", "xmm5", "xmm6", "xmm7", "xmm8", "xmm9", "xmm10",
           "xmm11", "xmm12", "xmm13", "xmm14", "xmm15");
     // Each sum exceeds the true one by 128 * (the B lane's sum): A's bytes are offset to unsigned.
-    const __m256i corr0 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)pb.sum), 7);
-    const __m256i corr1 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)(pb.sum + 8)), 7);
-    const __m256 sb0 = _mm256_loadu_ps(pb.scale), sb1 = _mm256_loadu_ps(pb.scale + 8);
-    EGOPD_SCALE(0) EGOPD_SCALE(1) EGOPD_SCALE(2) EGOPD_SCALE(3) EGOPD_SCALE(4) EGOPD_SCALE(5)
+    const __m256i corr[2] = {_mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)pb.sum), 7),
+                             _mm256_slli_epi32(_mm256_loadu_si256((const __m256i*)(pb.sum + 8)), 7)};
+    const __m256 sb[2] = {_mm256_loadu_ps(pb.scale), _mm256_loadu_ps(pb.scale + 8)};
+    // Row i, columns 8 h.. 8 h + 7 of the float sum with this group: every path adds a group as
+    // sum = fma(float(int32 sum - correction), s_row * s_col, sum), explicit, so that no path's compiler
+    // contraction makes the results differ (the first group adds to +0).
+    const auto with_group = [&](int i, int h) {
+      const __m256i q = _mm256_sub_epi32(_mm256_load_si256((const __m256i*)(acc + i * NR + 8 * h)), corr[h]);
+      const __m256 before = g > 0 ? _mm256_load_ps(sum + i * NR + 8 * h) : zero;
+      return _mm256_fmadd_ps(_mm256_cvtepi32_ps(q), _mm256_mul_ps(_mm256_broadcast_ss(pa.scale + i), sb[h]), before);
+    };
+    if (k0 + ep.i8_group >= kc)  // the last group: from registers into C, not through `sum`
+      return store_tile(c, ldc, mr, nr, ep, with_group(0, 0), with_group(0, 1), with_group(1, 0), with_group(1, 1),
+                        with_group(2, 0), with_group(2, 1), with_group(3, 0), with_group(3, 1), with_group(4, 0),
+                        with_group(4, 1), with_group(5, 0), with_group(5, 1));
+    for (int i = 0; i < MR; ++i)
+      for (int h = 0; h < 2; ++h) _mm256_store_ps(sum + i * NR + 8 * h, with_group(i, h));
   }
-  const auto row = [&](int i, int half) { return _mm256_load_ps(sum + i * NR + 8 * half); };
-  store_tile(c, ldc, mr, nr, ep, row(0, 0), row(0, 1), row(1, 0), row(1, 1), row(2, 0), row(2, 1), row(3, 0),
-             row(3, 1), row(4, 0), row(4, 1), row(5, 0), row(5, 1));
+  store_tile(c, ldc, mr, nr, ep, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero, zero);  // kc = 0
 }
 
-#undef EGOPD_SCALE
 #undef EGOPD_STORE_ASM
 #undef EGOPD_ROW_ASM
 
