@@ -247,14 +247,6 @@ void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, i
                                        std::min(group, kc - k0), group);
 }
 
-// The quantised bytes of 8 floats x * f (nearest even, clamped to +-127), offset to unsigned, in the low 8 bytes;
-// `sum` gains their signed values.
-inline __m128i quantize8_unsigned(__m256 x, __m256 f, __m256i& sum) {
-  const __m256i q = quantize8(x, f, 127, sum);
-  const __m128i w = _mm_packs_epi32(_mm256_castsi256_si128(q), _mm256_extracti128_si256(q, 1));  // 8 x int16
-  return _mm_xor_si128(_mm_packs_epi16(w, w), _mm_set1_epi8(char(0x80)));
-}
-
 alignas(32) const int16_t kOnes16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
 
 }  // namespace
@@ -268,48 +260,89 @@ void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int
 
 // A's panel straight from float32 rows (row i at a + i * lda), quantised as quantize_i8_a_avx2 quantises the packed
 // float panel (the same operations, so the same bytes), without the float panel between: each row's largest
-// magnitude over the group, then its bytes, one quad (4 k) to each slot of the row. Rows mr..MR - 1 and k past the
-// group's length quantise zeros.
+// magnitude over the group, then its bytes. Rows go four (or, last, two) at a time: 8 k of each are quantised, packed
+// together by two saturating packs (values within +-127 pass them unchanged) into the row block's quads of two
+// slots, one 16- (8-) byte store per slot, instead of one 4-byte store per row and quad. Rows mr..MR - 1 read zeros
+// (scale 0) and k past the group's length quantise zeros.
+namespace {
+
+alignas(32) const float kZeroRow[kInt8Block] = {};
+
+// Rows r0 .. r0 + kRows - 1 (kRows 4 or 2) of one group of `len` k: their quads into slots `out` (row stride MR
+// int32), their signed sums into total.
+template <int MR, int kRows>
+__attribute__((always_inline)) inline void quantize_row_block(const float* const* row, const __m256* f, int64_t len,
+                                                              int32_t* out, int32_t* total) {
+  const __m256i tail_mask = lane_mask(int(len % 8));
+  const __m256i offset = _mm256_set1_epi8(char(0x80));
+  __m256i sum[kRows];
+  for (int r = 0; r < kRows; ++r) sum[r] = _mm256_setzero_si256();
+  for (int64_t k = 0; k < len; k += 8) {
+    const bool whole = k + 8 <= len;
+    __m256i q[4];
+    for (int r = 0; r < kRows; ++r) {
+      const __m256 x = whole ? _mm256_loadu_ps(row[r] + k) : _mm256_maskload_ps(row[r] + k, tail_mask);
+      q[r] = quantize8(x, f[r], 127, sum[r]);
+    }
+    // Per 128-bit half h (k + 4h .. k + 4h + 3): bytes [row 0 quad | row 1 quad | row 2 quad | row 3 quad].
+    const __m256i w01 = _mm256_packs_epi32(q[0], q[1]);
+    const __m256i w23 = kRows == 4 ? _mm256_packs_epi32(q[2], q[3]) : w01;
+    const __m256i bytes = _mm256_xor_si256(_mm256_packs_epi16(w01, w23), offset);
+    int32_t* slot = out + (k / 4) * MR;
+    if constexpr (kRows == 4) {
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(slot), _mm256_castsi256_si128(bytes));
+      if (k + 4 < len) _mm_storeu_si128(reinterpret_cast<__m128i*>(slot + MR), _mm256_extracti128_si256(bytes, 1));
+    } else {
+      _mm_storel_epi64(reinterpret_cast<__m128i*>(slot), _mm256_castsi256_si128(bytes));
+      if (k + 4 < len) _mm_storel_epi64(reinterpret_cast<__m128i*>(slot + MR), _mm256_extracti128_si256(bytes, 1));
+    }
+  }
+  for (int r = 0; r < kRows; ++r) {
+    alignas(32) int32_t lanes[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum[r]);
+    total[r] = 0;
+    for (int32_t l : lanes) total[r] += l;
+  }
+}
+
+}  // namespace
+
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) {
+  static_assert(MR % 2 == 0, "row blocks of four, then of two");
   const __m256 sign = _mm256_set1_ps(-0.0f);
   for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group) {
-    const int64_t len = std::min(group, kc - k0), slots = i8_slot_rows(len);
+    const int64_t len = std::min(group, kc - k0);
     int32_t* out = reinterpret_cast<int32_t*>(dst + g * i8_region(MR, group));
     float* tail = dst + g * i8_region(MR, group) + i8_slot_rows(group) * MR;
+    const float* row[MR];
+    __m256 f[MR];
     for (int i = 0; i < MR; ++i) {
-      int32_t total = 0;
+      row[i] = i < mr ? a + i * lda + k0 : kZeroRow;
       float scale = 0.0f;
-      if (i >= mr) {
-        for (int64_t p = 0; p < slots; ++p) out[p * MR + i] = int32_t(0x80808080u);
-      } else {
-        const float* row = a + i * lda + k0;
+      f[i] = _mm256_setzero_ps();
+      if (i < mr) {
         __m256i v = _mm256_setzero_si256();
         int64_t k = 0;
-        for (; k + 8 <= len; k += 8) v = max_magnitude(v, _mm256_loadu_ps(row + k), sign);
-        const __m256i tail_mask = lane_mask(int(len - k));
-        if (k < len) v = max_magnitude(v, _mm256_maskload_ps(row + k, tail_mask), sign);
+        // The next panel's row meanwhile: rows of a few hundred floats are too short a stream for the hardware
+        // prefetcher to pick up before they end.
+        const float* next = row[i] + MR * lda;
+        for (int64_t j = 0; j < len; j += 16) _mm_prefetch(reinterpret_cast<const char*>(next + j), _MM_HINT_T0);
+        for (; k + 8 <= len; k += 8) v = max_magnitude(v, _mm256_loadu_ps(row[i] + k), sign);
+        if (k < len) v = max_magnitude(v, _mm256_maskload_ps(row[i] + k, lane_mask(int(len - k))), sign);
         alignas(32) float lane_max[8];
         _mm256_store_ps(lane_max, _mm256_castsi256_ps(v));
         float m = 0.0f;
         for (float l : lane_max) m = nan_sticky_max(m, l);
         scale = i8_scale(m);
-        const __m256 f = _mm256_set1_ps(i8_inverse(m));
-        __m256i sum = _mm256_setzero_si256();
-        alignas(16) int32_t quads[4];
-        for (k = 0; k < len; k += 8) {
-          const __m256 x = k + 8 <= len ? _mm256_loadu_ps(row + k) : _mm256_maskload_ps(row + k, tail_mask);
-          _mm_store_si128(reinterpret_cast<__m128i*>(quads), quantize8_unsigned(x, f, sum));
-          out[(k / 4) * MR + i] = quads[0];
-          if (k + 4 < len) out[(k / 4 + 1) * MR + i] = quads[1];
-        }
-        alignas(32) int32_t lanes[8];
-        _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum);
-        for (int32_t l : lanes) total += l;
+        f[i] = _mm256_set1_ps(i8_inverse(m));
       }
       tail[i] = scale;
-      reinterpret_cast<int32_t*>(tail + MR)[i] = total;
     }
+    int32_t* const total = reinterpret_cast<int32_t*>(tail + MR);
+    int i = 0;
+    for (; i + 4 <= MR; i += 4) quantize_row_block<MR, 4>(row + i, f + i, len, out + i, total + i);
+    if (i < MR) quantize_row_block<MR, 2>(row + i, f + i, len, out + i, total + i);
   }
 }
 template void pack_a_i8_rows_avx2<kMrAvx2>(const float*, int64_t, int, int64_t, int64_t, float*);
