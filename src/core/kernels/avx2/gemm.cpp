@@ -249,27 +249,11 @@ void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, i
 
 alignas(32) const int16_t kOnes16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
 
-}  // namespace
-
-void quantize_i8_a_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
-  quantize_quad_groups<true, 127>(src, dst, width, kc, group);
-}
-void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
-  quantize_quad_groups<false, kI8LevelsAvx2B>(src, dst, width, kc, group);
-}
-
-// A's panel straight from float32 rows (row i at a + i * lda), quantised as quantize_i8_a_avx2 quantises the packed
-// float panel (the same operations, so the same bytes), without the float panel between: each row's largest
-// magnitude over the group, then its bytes. Rows go four (or, last, two) at a time: 8 k of each are quantised, packed
-// together by two saturating packs (values within +-127 pass them unchanged) into the row block's quads of two
-// slots, one 16- (8-) byte store per slot, instead of one 4-byte store per row and quad. Rows mr..MR - 1 read zeros
-// (scale 0) and k past the group's length quantise zeros.
-namespace {
-
+// What a panel's rows past mr read: zeros for the longest group.
 alignas(32) const float kZeroRow[kInt8Block] = {};
 
-// Rows r0 .. r0 + kRows - 1 (kRows 4 or 2) of one group of `len` k: their quads into slots `out` (row stride MR
-// int32), their signed sums into total.
+// kRows (4 or 2) rows of A's panel, one group of `len` k (row r at row[r], quantising factor f[r]): their quads into
+// the slots from `out` (MR int32 per slot), their signed sums into total[0 .. kRows - 1] (pack_a_i8_rows_avx2).
 template <int MR, int kRows>
 __attribute__((always_inline)) inline void quantize_row_block(const float* const* row, const __m256* f, int64_t len,
                                                               int32_t* out, int32_t* total) {
@@ -279,14 +263,15 @@ __attribute__((always_inline)) inline void quantize_row_block(const float* const
   for (int r = 0; r < kRows; ++r) sum[r] = _mm256_setzero_si256();
   for (int64_t k = 0; k < len; k += 8) {
     const bool whole = k + 8 <= len;
-    __m256i q[4];
+    __m256i q[kRows];
     for (int r = 0; r < kRows; ++r) {
       const __m256 x = whole ? _mm256_loadu_ps(row[r] + k) : _mm256_maskload_ps(row[r] + k, tail_mask);
       q[r] = quantize8(x, f[r], 127, sum[r]);
     }
     // Per 128-bit half h (k + 4h .. k + 4h + 3): bytes [row 0 quad | row 1 quad | row 2 quad | row 3 quad].
     const __m256i w01 = _mm256_packs_epi32(q[0], q[1]);
-    const __m256i w23 = kRows == 4 ? _mm256_packs_epi32(q[2], q[3]) : w01;
+    __m256i w23 = w01;
+    if constexpr (kRows == 4) w23 = _mm256_packs_epi32(q[2], q[3]);
     const __m256i bytes = _mm256_xor_si256(_mm256_packs_epi16(w01, w23), offset);
     int32_t* slot = out + (k / 4) * MR;
     if constexpr (kRows == 4) {
@@ -307,6 +292,19 @@ __attribute__((always_inline)) inline void quantize_row_block(const float* const
 
 }  // namespace
 
+void quantize_i8_a_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<true, 127>(src, dst, width, kc, group);
+}
+void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int64_t group) {
+  quantize_quad_groups<false, kI8LevelsAvx2B>(src, dst, width, kc, group);
+}
+
+// A's panel straight from float32 rows (row i at a + i * lda), quantised as quantize_i8_a_avx2 quantises the packed
+// float panel (the same operations, so the same bytes), without the float panel between: each row's largest
+// magnitude over the group, then its bytes. Rows go four (or, last, two) at a time: 8 k of each are quantised, packed
+// together by two saturating packs (values within +-127 pass them unchanged) into the row block's quads of two
+// slots, one 16- (8-) byte store per slot, instead of one 4-byte store per row and quad. Rows mr..MR - 1 read zeros
+// (scale 0) and k past the group's length quantise zeros.
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) {
   static_assert(MR % 2 == 0, "row blocks of four, then of two");
