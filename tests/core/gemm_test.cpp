@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <functional>
 #include <map>
 #include <optional>
@@ -494,6 +495,40 @@ TEST(GemmInt8Test, KernelFollowsTheCpu) {
     EXPECT_EQ(int8_b_levels(), p == KernelPath::Avx2 ? 63 : 127) << kernel_path_name(p);
   }
 }
+
+#if defined(__x86_64__)
+// The AVX2 int8 A packer (the avx2 path's with 6 rows, the avx512 VNNI path's with 12) writes what the scalar
+// quantiser writes for the same rows packed as a float panel: the same quads, scales and sums, byte for byte (finite
+// values; a NaN row's bytes differ and are never read: its scale is NaN). Run wherever AVX2 is, so that the 12-row
+// packer is checked on CPUs without AVX-512 too. Short rows (mr < MR), K tails of 1-7, several and uneven groups.
+template <int MR>
+void expect_row_packer_matches_quantiser() {
+  std::mt19937 rng(31);
+  const int64_t lda = 703;
+  for (int mr : {1, 2, 3, 4, 5, MR - 1, MR})
+    for (auto [kc, group] : {std::pair<int64_t, int64_t>{1, 1}, {3, 3}, {4, 4}, {5, 5}, {12, 12}, {13, 13}, {31, 16},
+                             {700, 350}, {701, 351}})
+      for (float magnitude : {1.0f, 3e-3f, 250.0f}) {
+        std::vector<float> a = test::random_vec(size_t(MR * lda), rng);
+        for (float& v : a) v *= magnitude;
+        std::vector<float> panel(size_t(kc * MR), 0.0f);  // [k][row], rows past mr zero
+        for (int64_t k = 0; k < kc; ++k)
+          for (int i = 0; i < mr; ++i) panel[size_t(k * MR + i)] = a[size_t(i * lda + k)];
+        const size_t floats = size_t((kc + group - 1) / group * gemm_detail::i8_region(MR, group));
+        std::vector<float> got(floats, -1.0f), want(floats, -1.0f);
+        gemm_detail::pack_a_i8_rows_avx2<MR>(a.data(), lda, mr, kc, group, got.data());
+        gemm_detail::quantize_i8_quads(panel.data(), want.data(), MR, kc, group, /*unsigned_bytes=*/true);
+        ASSERT_EQ(std::memcmp(got.data(), want.data(), floats * sizeof(float)), 0)
+            << "MR " << MR << " mr " << mr << " kc " << kc << " group " << group << " magnitude " << magnitude;
+      }
+}
+
+TEST(GemmInt8Test, AvxRowPackerMatchesScalarQuantiser) {
+  if (!cpu_info().avx2_fma_f16c) GTEST_SKIP() << "needs AVX2";
+  expect_row_packer_matches_quantiser<gemm_detail::kMrAvx2>();
+  expect_row_packer_matches_quantiser<gemm_detail::kMrAvx512>();
+}
+#endif
 
 TEST(PrecisionTest, NamesParseBack) {
   for (Precision p : {Precision::Fp32, Precision::Bf16, Precision::Int8}) {
