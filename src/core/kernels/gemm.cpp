@@ -168,6 +168,10 @@ struct GluPairsB : BSource {
                        float* dst) const override {
     src->pack_bf16_pairs(path, seg, k0, kc, column(n0, path.nr), nr, dst);
   }
+  void pack_i8(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, int64_t group,
+               float* dst, float* floats) const override {
+    src->pack_i8(path, seg, k0, kc, column(n0, path.nr), nr, group, dst, floats);
+  }
 };
 
 // GEGLU where pairs of panels cannot serve (several K passes: the tile pairs need the whole sum; panels that do not
@@ -321,9 +325,12 @@ void run_gemm(const GemmJob& job) {
             job.b->pack_bf16_pairs(path, seg, k0, kc, n0, nr, panel);
             continue;
           }
-          job.b->pack(path, seg, k0, kc, n0, nr, int8 ? b_float : panel);
+          if (int8) {
+            job.b->pack_i8(path, seg, k0, kc, n0, nr, i8_group, panel, b_float);
+            continue;
+          }
+          job.b->pack(path, seg, k0, kc, n0, nr, panel);
           if (bf16) round_to_bf16(panel, kc * NR);
-          if (int8) path.quantize_b_i8(b_float, panel, NR, kc, i8_group);
         }
         if (split_m && nth > 1) {
 #pragma omp barrier
@@ -454,6 +461,12 @@ void OperandB::pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, in
                                float* dst) const {
   if (!path.pack_b_bf16) return BSource::pack_bf16_pairs(path, seg, k0, kc, n0, nr, dst);
   pack_operand(path.pack_b_bf16, op, seg * seg_stride, op.trans, n0, nr, k0, kc, dst);
+}
+void OperandB::pack_i8(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, int64_t group,
+                       float* dst, float* floats) const {
+  if (!path.pack_b_i8 || !op.trans || (op.dtype != DType::F32 && op.dtype != DType::F16))
+    return BSource::pack_i8(path, seg, k0, kc, n0, nr, group, dst, floats);
+  path.pack_b_i8(op.element(seg * seg_stride + n0 * op.ld + k0), op.dtype, op.ld, nr, kc, group, dst);
 }
 
 }  // namespace gemm_detail

@@ -99,6 +99,9 @@ struct GemmPath {
   // quantize_a_i8's panel of mr float32 rows read in place (row i at a + i * lda), without a float panel between
   // (null: pack_a, then quantize_a_i8).
   void (*pack_a_i8)(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) = nullptr;
+  // quantize_b_i8's panel of nr lanes read in place from the rows of a transposed F32 or F16 B (lane j's K values at
+  // b + j * ldb elements of dt), without a float panel between (null: pack_b, then quantize_b_i8).
+  void (*pack_b_i8)(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst) = nullptr;
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
   // Under Int8 and --conv auto, 3x3 convolutions take Winograd on quantised operands (winograd.h) where Winograd
@@ -193,6 +196,8 @@ void microkernel_neon_sdot(int64_t kc, const float* a, int64_t a_rs, int64_t a_c
                            int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst);
+template <int NR, int kLevels>
+void pack_b_i8_rows_avx2(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst);
 void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 
@@ -235,6 +240,13 @@ struct BSource {
     pack(path, seg, k0, kc, n0, nr, dst);
     path.to_bf16_pairs(dst, path.nr, kc);
   }
+  // The same panel quantised for Precision::Int8 into dst (GemmPath::quantize_b_i8, groups of `group` rows), through
+  // `floats` (kc * NR floats of the caller's) where it is packed as float32 first.
+  virtual void pack_i8(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, int64_t group,
+                       float* dst, float* floats) const {
+    pack(path, seg, k0, kc, n0, nr, floats);
+    path.quantize_b_i8(floats, dst, path.nr, kc, group);
+  }
 };
 
 struct GemmJob {
@@ -272,6 +284,8 @@ struct OperandB : BSource {
             float* dst) const override;
   void pack_bf16_pairs(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr,
                        float* dst) const override;
+  void pack_i8(const GemmPath& path, int64_t seg, int64_t k0, int64_t kc, int64_t n0, int nr, int64_t group,
+               float* dst, float* floats) const override;
 };
 
 // Packing primitives of each path (PackA / PackB contracts above). I8 multiplies by scale (already offset to the

@@ -249,37 +249,48 @@ void quantize_quad_groups(const float* src, float* dst, int width, int64_t kc, i
 
 alignas(32) const int16_t kOnes16[16] = {1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1};
 
-// What a panel's rows past mr read: zeros for the longest group.
+// What a panel's lanes past its rows read: zeros for the longest group (as float32 or as F16 bits).
 alignas(32) const float kZeroRow[kInt8Block] = {};
+alignas(32) const uint16_t kZeroHalfRow[kInt8Block] = {};
+inline const float* zero_row(const float*) { return kZeroRow; }
+inline const uint16_t* zero_row(const uint16_t*) { return kZeroHalfRow; }
 
-// kRows (4 or 2) rows of A's panel, one group of `len` k (row r at row[r], quantising factor f[r]): their quads into
-// the slots from `out` (MR int32 per slot), their signed sums into total[0 .. kRows - 1] (pack_a_i8_rows_avx2).
-template <int MR, int kRows>
-__attribute__((always_inline)) inline void quantize_row_block(const float* const* row, const __m256* f, int64_t len,
+// 8 values of a row from p as float32: all 8 for n >= 8, else the first n and zeros (never read past them).
+inline __m256 load_row8(const float* p, int n) {
+  return n >= 8 ? _mm256_loadu_ps(p) : _mm256_maskload_ps(p, lane_mask(n));
+}
+inline __m256 load_row8(const uint16_t* p, int n) {  // F16, converted exactly
+  if (n >= 8) return _mm256_cvtph_ps(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)));
+  alignas(16) uint16_t h[8] = {};
+  std::copy_n(p, n, h);
+  return _mm256_cvtph_ps(_mm_load_si128(reinterpret_cast<const __m128i*>(h)));
+}
+
+// kRows (4 or 2) rows of a panel of W lanes, one group of `len` k (row r at row[r], quantising factor f[r]): their
+// quads (values within -kLevels..kLevels, bytes offset by +128 when kUnsigned) into the slots from `out` (W int32 per
+// slot), their signed sums into total[0 .. kRows - 1] (pack_i8_rows_avx2).
+template <int W, int kRows, int kLevels, bool kUnsigned, typename T>
+__attribute__((always_inline)) inline void quantize_row_block(const T* const* row, const __m256* f, int64_t len,
                                                               int32_t* out, int32_t* total) {
-  const __m256i tail_mask = lane_mask(int(len % 8));
-  const __m256i offset = _mm256_set1_epi8(char(0x80));
+  const __m256i offset = _mm256_set1_epi8(char(kUnsigned ? 0x80 : 0));
   __m256i sum[kRows];
   for (int r = 0; r < kRows; ++r) sum[r] = _mm256_setzero_si256();
   for (int64_t k = 0; k < len; k += 8) {
-    const bool whole = k + 8 <= len;
+    const int n = int(std::min<int64_t>(8, len - k));
     __m256i q[kRows];
-    for (int r = 0; r < kRows; ++r) {
-      const __m256 x = whole ? _mm256_loadu_ps(row[r] + k) : _mm256_maskload_ps(row[r] + k, tail_mask);
-      q[r] = quantize8(x, f[r], 127, sum[r]);
-    }
+    for (int r = 0; r < kRows; ++r) q[r] = quantize8(load_row8(row[r] + k, n), f[r], kLevels, sum[r]);
     // Per 128-bit half h (k + 4h .. k + 4h + 3): bytes [row 0 quad | row 1 quad | row 2 quad | row 3 quad].
     const __m256i w01 = _mm256_packs_epi32(q[0], q[1]);
     __m256i w23 = w01;
     if constexpr (kRows == 4) w23 = _mm256_packs_epi32(q[2], q[3]);
     const __m256i bytes = _mm256_xor_si256(_mm256_packs_epi16(w01, w23), offset);
-    int32_t* slot = out + (k / 4) * MR;
+    int32_t* slot = out + (k / 4) * W;
     if constexpr (kRows == 4) {
       _mm_storeu_si128(reinterpret_cast<__m128i*>(slot), _mm256_castsi256_si128(bytes));
-      if (k + 4 < len) _mm_storeu_si128(reinterpret_cast<__m128i*>(slot + MR), _mm256_extracti128_si256(bytes, 1));
+      if (k + 4 < len) _mm_storeu_si128(reinterpret_cast<__m128i*>(slot + W), _mm256_extracti128_si256(bytes, 1));
     } else {
       _mm_storel_epi64(reinterpret_cast<__m128i*>(slot), _mm256_castsi256_si128(bytes));
-      if (k + 4 < len) _mm_storel_epi64(reinterpret_cast<__m128i*>(slot + MR), _mm256_extracti128_si256(bytes, 1));
+      if (k + 4 < len) _mm_storel_epi64(reinterpret_cast<__m128i*>(slot + W), _mm256_extracti128_si256(bytes, 1));
     }
   }
   for (int r = 0; r < kRows; ++r) {
@@ -287,6 +298,53 @@ __attribute__((always_inline)) inline void quantize_row_block(const float* const
     _mm256_store_si256(reinterpret_cast<__m256i*>(lanes), sum[r]);
     total[r] = 0;
     for (int32_t l : lanes) total[r] += l;
+  }
+}
+
+// A panel of W lanes straight from rows (lane i's values at a + i * lda, float32 or F16), quantised as the
+// path's quantiser quantises the packed float panel (the same operations, so the same bytes: quantize_quads with
+// kLevels and kUnsigned), without the float panel between: each row's largest magnitude over the group, then its
+// bytes. Rows go four (or, last, two) at a time: 8 k of each are quantised, packed together by two saturating packs
+// (values within +-127 pass them unchanged) into the row block's quads of two slots, one 16- (8-) byte store per
+// slot, instead of one 4-byte store per row and quad. Lanes rows..W - 1 read zeros (scale 0) and k past the group's
+// length quantise zeros.
+template <int W, int kLevels, bool kUnsigned, typename T>
+void pack_i8_rows_avx2(const T* a, int64_t lda, int rows, int64_t kc, int64_t group, float* dst) {
+  static_assert(W % 2 == 0, "row blocks of four, then of two");
+  const __m256 sign = _mm256_set1_ps(-0.0f);
+  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group) {
+    const int64_t len = std::min(group, kc - k0);
+    int32_t* out = reinterpret_cast<int32_t*>(dst + g * i8_region(W, group));
+    float* tail = dst + g * i8_region(W, group) + i8_slot_rows(group) * W;
+    const T* row[W];
+    __m256 f[W];
+    for (int i = 0; i < W; ++i) {
+      row[i] = i < rows ? a + i * lda + k0 : zero_row(a);
+      float scale = 0.0f;
+      f[i] = _mm256_setzero_ps();
+      if (i < rows) {
+        __m256i v = _mm256_setzero_si256();
+        // The next panel's row meanwhile: rows of a few hundred values are too short a stream for the hardware
+        // prefetcher to pick up before they end.
+        const T* next = row[i] + W * lda;
+        for (int64_t j = 0; j < len; j += 64 / int64_t(sizeof(T)))
+          _mm_prefetch(reinterpret_cast<const char*>(next + j), _MM_HINT_T0);
+        for (int64_t k = 0; k < len; k += 8)
+          v = max_magnitude(v, load_row8(row[i] + k, int(std::min<int64_t>(8, len - k))), sign);
+        alignas(32) float lane_max[8];
+        _mm256_store_ps(lane_max, _mm256_castsi256_ps(v));
+        float m = 0.0f;
+        for (float l : lane_max) m = nan_sticky_max(m, l);
+        scale = i8_scale(m, kLevels);
+        f[i] = _mm256_set1_ps(i8_inverse(m, kLevels));
+      }
+      tail[i] = scale;
+    }
+    int32_t* const total = reinterpret_cast<int32_t*>(tail + W);
+    int i = 0;
+    for (; i + 4 <= W; i += 4)
+      quantize_row_block<W, 4, kLevels, kUnsigned>(row + i, f + i, len, out + i, total + i);
+    if (i < W) quantize_row_block<W, 2, kLevels, kUnsigned>(row + i, f + i, len, out + i, total + i);
   }
 }
 
@@ -299,52 +357,21 @@ void quantize_i8_b_avx2(const float* src, float* dst, int width, int64_t kc, int
   quantize_quad_groups<false, kI8LevelsAvx2B>(src, dst, width, kc, group);
 }
 
-// A's panel straight from float32 rows (row i at a + i * lda), quantised as quantize_i8_a_avx2 quantises the packed
-// float panel (the same operations, so the same bytes), without the float panel between: each row's largest
-// magnitude over the group, then its bytes. Rows go four (or, last, two) at a time: 8 k of each are quantised, packed
-// together by two saturating packs (values within +-127 pass them unchanged) into the row block's quads of two
-// slots, one 16- (8-) byte store per slot, instead of one 4-byte store per row and quad. Rows mr..MR - 1 read zeros
-// (scale 0) and k past the group's length quantise zeros.
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst) {
-  static_assert(MR % 2 == 0, "row blocks of four, then of two");
-  const __m256 sign = _mm256_set1_ps(-0.0f);
-  for (int64_t g = 0, k0 = 0; k0 < kc; ++g, k0 += group) {
-    const int64_t len = std::min(group, kc - k0);
-    int32_t* out = reinterpret_cast<int32_t*>(dst + g * i8_region(MR, group));
-    float* tail = dst + g * i8_region(MR, group) + i8_slot_rows(group) * MR;
-    const float* row[MR];
-    __m256 f[MR];
-    for (int i = 0; i < MR; ++i) {
-      row[i] = i < mr ? a + i * lda + k0 : kZeroRow;
-      float scale = 0.0f;
-      f[i] = _mm256_setzero_ps();
-      if (i < mr) {
-        __m256i v = _mm256_setzero_si256();
-        int64_t k = 0;
-        // The next panel's row meanwhile: rows of a few hundred floats are too short a stream for the hardware
-        // prefetcher to pick up before they end.
-        const float* next = row[i] + MR * lda;
-        for (int64_t j = 0; j < len; j += 16) _mm_prefetch(reinterpret_cast<const char*>(next + j), _MM_HINT_T0);
-        for (; k + 8 <= len; k += 8) v = max_magnitude(v, _mm256_loadu_ps(row[i] + k), sign);
-        if (k < len) v = max_magnitude(v, _mm256_maskload_ps(row[i] + k, lane_mask(int(len - k))), sign);
-        alignas(32) float lane_max[8];
-        _mm256_store_ps(lane_max, _mm256_castsi256_ps(v));
-        float m = 0.0f;
-        for (float l : lane_max) m = nan_sticky_max(m, l);
-        scale = i8_scale(m);
-        f[i] = _mm256_set1_ps(i8_inverse(m));
-      }
-      tail[i] = scale;
-    }
-    int32_t* const total = reinterpret_cast<int32_t*>(tail + MR);
-    int i = 0;
-    for (; i + 4 <= MR; i += 4) quantize_row_block<MR, 4>(row + i, f + i, len, out + i, total + i);
-    if (i < MR) quantize_row_block<MR, 2>(row + i, f + i, len, out + i, total + i);
-  }
+  pack_i8_rows_avx2<MR, 127, true>(a, lda, mr, kc, group, dst);
 }
 template void pack_a_i8_rows_avx2<kMrAvx2>(const float*, int64_t, int, int64_t, int64_t, float*);
 template void pack_a_i8_rows_avx2<kMrAvx512>(const float*, int64_t, int, int64_t, int64_t, float*);
+
+template <int NR, int kLevels>
+void pack_b_i8_rows_avx2(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst) {
+  if (dt == DType::F16)
+    return pack_i8_rows_avx2<NR, kLevels, false>(static_cast<const uint16_t*>(b), ldb, nr, kc, group, dst);
+  pack_i8_rows_avx2<NR, kLevels, false>(static_cast<const float*>(b), ldb, nr, kc, group, dst);
+}
+template void pack_b_i8_rows_avx2<kNrAvx2, kI8LevelsAvx2B>(const void*, DType, int64_t, int, int64_t, int64_t, float*);
+template void pack_b_i8_rows_avx2<kNrAvx512, 127>(const void*, DType, int64_t, int, int64_t, int64_t, float*);
 
 // All six rows at once: twelve accumulators (ymm0-11), two B vectors (ymm12-13), the A broadcast (ymm14) and a
 // product (ymm15) fill the 16 registers, so the ones of the widening come from memory and the quad loop is assembly
