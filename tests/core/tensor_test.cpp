@@ -35,6 +35,35 @@ TEST(Dtype, HalfToFloatExhaustive) {
   }
 }
 
+// Against the definition on a sweep of floats across the finite halves' range (normal and subnormal, both signs) and
+// every midpoint between neighbouring halves: no neighbouring half is nearer, and a tie gives the even one.
+TEST(Dtype, FloatToHalfIsTheNearestHalf) {
+  const auto check = [](float f) {
+    const uint16_t h = float_to_half(f);
+    const uint16_t mag = h & 0x7fffu;
+    ASSERT_LE(mag, 0x7bffu) << f;  // finite below 65520
+    ASSERT_EQ(h >> 15, std::signbit(f) ? 1u : 0u) << f;
+    const double a = std::fabs(double(f)), d = std::fabs(a - double(half_to_float(mag)));
+    for (int step : {-1, 1}) {
+      if ((mag == 0 && step < 0) || (mag == 0x7bff && step > 0)) continue;
+      const double dn = std::fabs(a - double(half_to_float(uint16_t(mag + step))));
+      ASSERT_LE(d, dn) << f;
+      if (d == dn) ASSERT_EQ(mag & 1u, 0u) << "tie of " << f;
+    }
+  };
+  for (uint32_t bits = 0; bits < 0x477fe000u; bits += 997) {
+    float f;
+    std::memcpy(&f, &bits, 4);
+    check(f);
+    check(-f);
+  }
+  for (uint16_t m = 0; m < 0x7bff; ++m) {  // midpoints, exact in float32
+    const float mid = float((double(half_to_float(m)) + double(half_to_float(uint16_t(m + 1)))) / 2);
+    check(mid);
+    check(-mid);
+  }
+}
+
 TEST(Dtype, FloatToHalfRoundsToNearestEven) {
   for (uint32_t h = 0; h < 65536; ++h) {  // every half survives the round trip
     if (std::isnan(half_reference(uint16_t(h)))) continue;
