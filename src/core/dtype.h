@@ -42,6 +42,8 @@ inline float half_to_float(uint16_t h) {
 
 // binary32 -> binary16, round to nearest even (used by the converter and by tests).
 uint16_t float_to_half(float f);
+// float_to_half of n values (F16C where the CPU has it, the same halves).
+void floats_to_halves(const float* src, uint16_t* dst, size_t n);
 
 inline float bf16_to_float(uint16_t b) {
   uint32_t bits = uint32_t(b) << 16;

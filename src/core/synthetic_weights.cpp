@@ -73,8 +73,16 @@ void write_synthetic_safetensors(const std::string& path, const std::vector<std:
       std::memcpy(bytes.data(), values.data(), size_t(n) * 4);
     } else {
       auto* h = reinterpret_cast<uint16_t*>(bytes.data());
-#pragma omp parallel for schedule(static) if (n > 262144)
-      for (int64_t i = 0; i < n; ++i) h[i] = dtype == DType::F16 ? float_to_half(values[size_t(i)]) : float_to_bf16(values[size_t(i)]);
+      constexpr int64_t kChunk = 1 << 16;
+#pragma omp parallel for schedule(static) if (n > 4 * kChunk)
+      for (int64_t c0 = 0; c0 < n; c0 += kChunk) {
+        const int64_t len = std::min(kChunk, n - c0);
+        if (dtype == DType::F16) {
+          floats_to_halves(values.data() + c0, h + c0, size_t(len));
+        } else {
+          for (int64_t i = c0; i < c0 + len; ++i) h[i] = float_to_bf16(values[size_t(i)]);
+        }
+      }
     }
     w.write(bytes.data(), size_t(n) * dtype_size(dtype));
   }

@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <random>
+#include <vector>
 
 #include "core/dtype.h"
 #include "core/error.h"
@@ -61,6 +63,28 @@ TEST(Dtype, FloatToHalfIsTheNearestHalf) {
     const float mid = float((double(half_to_float(m)) + double(half_to_float(uint16_t(m + 1)))) / 2);
     check(mid);
     check(-mid);
+  }
+}
+
+// The batch conversion (F16C where the CPU has it) gives float_to_half's halves: blocks of 8 and tails, NaNs (with
+// payloads, beside finite values), infinities, overflow, ties and subnormals.
+TEST(Dtype, FloatsToHalvesMatchesTheScalarConversion) {
+  std::mt19937 rng(5);
+  std::vector<float> v;
+  for (int i = 0; i < 4000; ++i) {
+    const uint32_t bits = uint32_t(rng());
+    float f;
+    std::memcpy(&f, &bits, 4);
+    v.push_back(f);  // any bit pattern: NaNs with payloads, inf, huge, tiny
+    v.push_back(std::ldexp(float(int(rng() % 2001) - 1000) / 1000.0f, int(rng() % 40) - 26));
+  }
+  for (float f : {65519.0f, 65520.0f, 1.0f + std::ldexp(1.0f, -11), std::ldexp(1.0f, -25), std::ldexp(1.5f, -25)})
+    v.push_back(f);
+  for (size_t n : {size_t(0), size_t(1), size_t(7), size_t(8), size_t(9), size_t(17), v.size()}) {
+    std::vector<uint16_t> got(n + 1, 0xabcd);
+    floats_to_halves(v.data(), got.data(), n);
+    for (size_t i = 0; i < n; ++i) ASSERT_EQ(got[i], float_to_half(v[i])) << "n " << n << " i " << i << " " << v[i];
+    ASSERT_EQ(got[n], 0xabcd) << n;  // nothing written past n
   }
 }
 
