@@ -32,12 +32,21 @@ void store_floats(const float* v, size_t n, DType dt, uint8_t* dst, const std::s
     std::memcpy(dst, v, n * 4);
     return;
   }
-  for (size_t i = 0; i < n; ++i) {
-    const uint16_t h = dt == DType::F16 ? float_to_half(v[i]) : float_to_bf16(v[i]);
-    if ((h & 0x7fffu) == (dt == DType::F16 ? 0x7c00u : 0x7f80u))  // ±Inf of the target from a finite value
-      throw Error(name + ": value " + std::to_string(v[i]) + " at index " + std::to_string(i) + " overflows " +
-                  dtype_name(dt) + (dt == DType::F16 ? " (largest 65504)" : "") + "; keep this model in a wider type");
-    std::memcpy(dst + 2 * i, &h, 2);
+  constexpr size_t kChunk = 4096;
+  uint16_t h[kChunk];
+  for (size_t c0 = 0; c0 < n; c0 += kChunk) {
+    const size_t len = std::min(kChunk, n - c0);
+    if (dt == DType::F16) {
+      floats_to_halves(v + c0, h, len);
+    } else {
+      for (size_t i = 0; i < len; ++i) h[i] = float_to_bf16(v[c0 + i]);
+    }
+    for (size_t i = 0; i < len; ++i)
+      if ((h[i] & 0x7fffu) == (dt == DType::F16 ? 0x7c00u : 0x7f80u))  // ±Inf of the target from a finite value
+        throw Error(name + ": value " + std::to_string(v[c0 + i]) + " at index " + std::to_string(c0 + i) +
+                    " overflows " + dtype_name(dt) + (dt == DType::F16 ? " (largest 65504)" : "") +
+                    "; keep this model in a wider type");
+    std::memcpy(dst + 2 * c0, h, 2 * len);
   }
 }
 
