@@ -524,12 +524,11 @@ void expect_row_packer_matches_quantiser() {
       }
 }
 
-// The AVX2 int8 B packer, reading the rows of a transposed F32 or F16 B in place, writes what the path's packer and
-// quantiser write through a float panel, byte for byte: the avx2 path's 16 lanes of 63 levels against
-// pack_b_avx2 + quantize_i8_b_avx2, and the avx512 VNNI path's 32 lanes of 127 levels against the scalar quantiser
-// (run wherever AVX2 is). Short panels (nr < NR), K tails of 1-7, several and uneven groups, three magnitudes.
-template <int NR, int kLevels>
+// The AVX2 int8 B packer, reading the rows of a transposed F32 or F16 B in place, writes what the avx2 path's packer
+// and quantiser write through a float panel (pack_b_avx2, then quantize_i8_b_avx2: 16 lanes of 63 levels), byte for
+// byte. Short panels (nr < NR), K tails of 1-7, several and uneven groups, three magnitudes.
 void expect_b_row_packer_matches_quantiser(DType dt) {
+  constexpr int NR = gemm_detail::kNrAvx2;
   std::mt19937 rng(37);
   const int64_t ldb = 705;
   for (int nr : {1, 3, 4, 6, NR - 1, NR})
@@ -548,16 +547,12 @@ void expect_b_row_packer_matches_quantiser(DType dt) {
           for (int j = 0; j < nr; ++j) panel[size_t(k * NR + j)] = b[size_t(j * ldb + k)];
         const size_t floats = size_t((kc + group - 1) / group * gemm_detail::i8_region(NR, group));
         std::vector<float> got(floats, -1.0f), want(floats, -1.0f);
-        gemm_detail::pack_b_i8_rows_avx2<NR, kLevels>(src, dt, ldb, nr, kc, group, got.data());
-        if constexpr (kLevels == gemm_detail::kI8LevelsAvx2B) {
-          AlignedScratch packed_buf;  // the packer stores whole aligned vectors
-          float* const packed = packed_buf.get(size_t(kc * NR));
-          gemm_detail::pack_b_avx2(src, dt, ldb, /*trans=*/true, nullptr, kc, nr, packed);
-          ASSERT_TRUE(std::equal(panel.begin(), panel.end(), packed)) << "nr " << nr << " kc " << kc;
-          gemm_detail::quantize_i8_b_avx2(panel.data(), want.data(), NR, kc, group);
-        } else {
-          gemm_detail::quantize_i8_quads(panel.data(), want.data(), NR, kc, group, /*unsigned_bytes=*/false);
-        }
+        gemm_detail::pack_b_i8_rows_avx2<NR, gemm_detail::kI8LevelsAvx2B>(src, dt, ldb, nr, kc, group, got.data());
+        AlignedScratch packed_buf;  // the packer stores whole aligned vectors
+        float* const packed = packed_buf.get(size_t(kc * NR));
+        gemm_detail::pack_b_avx2(src, dt, ldb, /*trans=*/true, nullptr, kc, nr, packed);
+        ASSERT_TRUE(std::equal(panel.begin(), panel.end(), packed)) << "nr " << nr << " kc " << kc;
+        gemm_detail::quantize_i8_b_avx2(panel.data(), want.data(), NR, kc, group);
         ASSERT_EQ(std::memcmp(got.data(), want.data(), floats * sizeof(float)), 0)
             << dtype_name(dt) << " NR " << NR << " nr " << nr << " kc " << kc << " group " << group
             << " magnitude " << magnitude;
@@ -566,10 +561,7 @@ void expect_b_row_packer_matches_quantiser(DType dt) {
 
 TEST(GemmInt8Test, AvxBRowPackerMatchesQuantiser) {
   if (!cpu_info().avx2_fma_f16c) GTEST_SKIP() << "needs AVX2";
-  for (DType dt : {DType::F32, DType::F16}) {
-    expect_b_row_packer_matches_quantiser<gemm_detail::kNrAvx2, gemm_detail::kI8LevelsAvx2B>(dt);
-    expect_b_row_packer_matches_quantiser<gemm_detail::kNrAvx512, 127>(dt);
-  }
+  for (DType dt : {DType::F32, DType::F16}) expect_b_row_packer_matches_quantiser(dt);
 }
 
 TEST(GemmInt8Test, AvxRowPackerMatchesScalarQuantiser) {

@@ -133,7 +133,6 @@ const GemmPath& gemm_path(KernelPath which) {
       p.quantize_b_i8 = quantize_i8_b_avx512_vnni;
       p.micro_i8 = microkernel_avx512_vnni;
       p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx512>;  // the same unsigned quads of 127 levels
-      p.pack_b_i8 = pack_b_i8_rows_avx2<kNrAvx512, 127>;  // and signed ones of B
       p.i8_kernel = "vpdpbusd (AVX512-VNNI)";
     }
     return p;
