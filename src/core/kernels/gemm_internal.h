@@ -143,6 +143,17 @@ void pack_a_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const f
                         float* dst);
 void pack_b_bf16_avx512(const void* p, DType dt, int64_t ld, bool trans, const float* scale, int64_t kc, int nr,
                         float* dst);
+// The C tile is written (and read, if the epilogue adds to it) after the k loop: micro-kernels start fetching it
+// before (a first write misses as much as a read; AMD EPYC Zen 3 and Zen 5 class, bench gemm 4096x5120x640 and
+// 16384x2560x320: 0.92-0.95x the time with this for every tile). Rows i < rows at c + i * ldc: the lines of floats 0
+// and `second` of each (15 of the AVX2 tile's 16 columns, 16 of the AVX-512 tile's 32).
+inline void prefetch_c_rows(const float* c, int64_t ldc, int rows, int second) {
+  for (int i = 0; i < rows; ++i) {
+    __builtin_prefetch(c + i * ldc, 0, 3);  // prefetcht0, as _mm_prefetch(_MM_HINT_T0)
+    __builtin_prefetch(c + i * ldc + second, 0, 3);
+  }
+}
+
 // ---- Int8 panels (Precision::Int8) ----
 // A packed float32 panel of `width` lanes and kc rows is quantised (in place, or into a buffer apart) in groups of
 // `group` rows (gemm.h's K blocks; the last group of K may be shorter). Group g becomes a region of

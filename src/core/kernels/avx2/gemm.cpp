@@ -1,5 +1,6 @@
 // AVX2/FMA/F16C micro-kernel (6 x 16, 12 ymm accumulators) and packing with on-the-fly F16/BF16 conversion.
-// Only reached through the avx2 and avx512 kernel paths; everything below the pragma is plain static code (no library inlines).
+// Only reached through the avx2 and avx512 kernel paths; everything below the pragma is plain static code (no
+// library inlines).
 #include <algorithm>
 #include <cstdint>
 
@@ -41,15 +42,7 @@ inline __m256 act_ps(Act act, __m256 v) {
   }
 }
 
-// The C tile is written (and read, if the epilogue adds to it) after the k loop: start fetching it now. A first
-// write misses as much as a read (as on the avx512 path; AMD EPYC Zen 3, bench gemm alternating, 4096x5120x640 and
-// 16384x2560x320: medians 0.92-0.95x the time with this for every tile, not only those that load C).
-inline void prefetch_c(const float* c, int64_t ldc, int mr) {
-  for (int i = 0; i < mr; ++i) {
-    _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc), _MM_HINT_T0);
-    _mm_prefetch(reinterpret_cast<const char*>(c + i * ldc + 15), _MM_HINT_T0);
-  }
-}
+inline void prefetch_c(const float* c, int64_t ldc, int mr) { prefetch_c_rows(c, ldc, mr, NR - 1); }
 
 // One full row of the tile: v0/v1 = columns 0-7 / 8-15 of the sum.
 inline void store_row(float* c, __m256 v0, __m256 v1, int i, const TileEpilogue& ep) {
