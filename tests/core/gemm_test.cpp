@@ -547,7 +547,7 @@ void expect_b_row_packer_matches_quantiser(DType dt) {
           for (int j = 0; j < nr; ++j) panel[size_t(k * NR + j)] = b[size_t(j * ldb + k)];
         const size_t floats = size_t((kc + group - 1) / group * gemm_detail::i8_region(NR, group));
         std::vector<float> got(floats, -1.0f), want(floats, -1.0f);
-        gemm_detail::pack_b_i8_rows_avx2<NR, gemm_detail::kI8LevelsAvx2B>(src, dt, ldb, nr, kc, group, got.data());
+        gemm_detail::pack_b_i8_rows_avx2(src, dt, ldb, nr, kc, group, got.data());
         AlignedScratch packed_buf;  // the packer stores whole aligned vectors
         float* const packed = packed_buf.get(size_t(kc * NR));
         gemm_detail::pack_b_avx2(src, dt, ldb, /*trans=*/true, nullptr, kc, nr, packed);

@@ -207,7 +207,7 @@ void microkernel_neon_sdot(int64_t kc, const float* a, int64_t a_rs, int64_t a_c
                            int64_t ldc, int mr, int nr, const TileEpilogue& ep);
 template <int MR>
 void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_t group, float* dst);
-template <int NR, int kLevels>
+// The avx2 path's B panels (16 lanes, 63 levels) from a transposed F32 or F16 B (GemmPath::pack_b_i8).
 void pack_b_i8_rows_avx2(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst);
 void microkernel_avx2_i8(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, const float* b, float* c,
                          int64_t ldc, int mr, int nr, const TileEpilogue& ep);

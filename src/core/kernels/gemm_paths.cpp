@@ -101,7 +101,7 @@ const GemmPath& gemm_path(KernelPath which) {
     p.quantize_b_i8 = quantize_i8_b_avx2;
     p.i8_b_levels = kI8LevelsAvx2B;
     p.pack_a_i8 = pack_a_i8_rows_avx2<kMrAvx2>;
-    p.pack_b_i8 = pack_b_i8_rows_avx2<kNrAvx2, kI8LevelsAvx2B>;
+    p.pack_b_i8 = pack_b_i8_rows_avx2;
     p.micro_i8 = microkernel_avx2_i8;
     p.i8_kernel = "vpmaddubsw (AVX2, B in 63 levels)";
     // Float32 Winograd beats vpmaddubsw's direct convolution on the VAE's frames and the U-Net's 16x16 and 32x32

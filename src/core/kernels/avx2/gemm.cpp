@@ -357,13 +357,11 @@ void pack_a_i8_rows_avx2(const float* a, int64_t lda, int mr, int64_t kc, int64_
 template void pack_a_i8_rows_avx2<kMrAvx2>(const float*, int64_t, int, int64_t, int64_t, float*);
 template void pack_a_i8_rows_avx2<kMrAvx512>(const float*, int64_t, int, int64_t, int64_t, float*);
 
-template <int NR, int kLevels>
 void pack_b_i8_rows_avx2(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst) {
   if (dt == DType::F16)
-    return pack_i8_rows_avx2<NR, kLevels, false>(static_cast<const uint16_t*>(b), ldb, nr, kc, group, dst);
-  pack_i8_rows_avx2<NR, kLevels, false>(static_cast<const float*>(b), ldb, nr, kc, group, dst);
+    return pack_i8_rows_avx2<NR, kI8LevelsAvx2B, false>(static_cast<const uint16_t*>(b), ldb, nr, kc, group, dst);
+  pack_i8_rows_avx2<NR, kI8LevelsAvx2B, false>(static_cast<const float*>(b), ldb, nr, kc, group, dst);
 }
-template void pack_b_i8_rows_avx2<kNrAvx2, kI8LevelsAvx2B>(const void*, DType, int64_t, int, int64_t, int64_t, float*);
 
 // All six rows at once: twelve accumulators (ymm0-11), two B vectors (ymm12-13), the A broadcast (ymm14) and a
 // product (ymm15) fill the 16 registers, so the ones of the widening come from memory and the quad loop is assembly
