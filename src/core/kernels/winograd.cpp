@@ -176,15 +176,8 @@ struct Int8Scales {
   std::vector<float> x_inv, x_scale, w_inv, w_scale;
   int64_t x_group = 1, x_groups = 1, w_group = 1, w_ld = 0;
   wino_detail::InputQuant input() const { return {x_inv.data(), x_scale.data(), x_group, x_groups}; }
-  // The scales of the 9 taps of input channel c for the lanes of output channels o, o + 1, ...
-  void taps(int64_t c, int64_t o, wino_detail::TapQuant* q) const {
-    int64_t g = c * 9 / w_group, left = (g + 1) * w_group - c * 9;  // taps left in group g (groups hold >= 9)
-    for (int t = 0; t < 9; ++t, --left) {
-      if (left == 0) ++g, left = w_group;
-      q->inv[t] = w_inv.data() + g * w_ld + o;
-      q->scale[t] = w_scale.data() + g * w_ld + o;
-    }
-  }
+  // The weights' scales for the lanes of output channels o, o + 1, ...
+  wino_detail::TapScales taps(int64_t o) const { return {w_inv.data() + o, w_scale.data() + o, w_group, w_ld}; }
 };
 
 // Largest magnitude of the n stored weights from element e0 of `w` (of output channel o), as float32 exactly as the
@@ -323,11 +316,8 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
         }
         path.pack_a(weight.element((o * cin + c0) * 9), weight.dtype, cin * 9, false,
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
-        wino_detail::TapQuant tq;
-        for (int c = 0; c < len; ++c) {
-          if (int8) q8.taps(c0 + c, o, &tq);
-          filter_rows(g + c * 9 * MR, dst + c * MR, u_xi, &tq);
-        }
+        if (int8) kern.round_taps_i8(g, c0 * 9, len * 9, q8.taps(o));
+        for (int c = 0; c < len; ++c) filter_rows(g + c * 9 * MR, dst + c * MR, u_xi);
       }
   };
 

@@ -58,17 +58,21 @@ struct OutputEpilogue {
 // Output transform of one output channel of one panel: src[xi*xi_stride + j] is M[xi] of tile j.
 using OutputPanelFn = void (*)(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep);
 
-// Int8 filter taps: tap t of lane i becomes clamp(nearbyint(g * inv[t][i]), -127, 127) * scale[t][i] (the scales
-// of the quantisation group holding that tap of the lane's output channel).
-struct TapQuant {
-  const float* inv[9];
-  const float* scale[9];
-};
-
 // Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
-// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. q is read
-// under OperandRounding::Int8 only.
-using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride, const TapQuant* q);
+// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. Under
+// OperandRounding::Bf16 the taps are rounded as they are loaded; int8 taps come quantised (RoundTapsFn).
+using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride);
+
+// Int8 weights of R output channels (lanes): scale rows of `ld` floats, one per quantisation group of `group` taps,
+// already offset to the first lane's output channel.
+struct TapScales {
+  const float* inv;
+  const float* scale;
+  int64_t group, ld;
+};
+// Taps [k0, k0 + nk) of the layer's cin * 9 (k = c * 9 + t), g[(k - k0)*R + i] for lane i, become
+// clamp(nearbyint(g * inv), -127, 127) * scale with the inv and scale of their group, at [(k / group) * ld + i].
+using RoundTapsFn = void (*)(float* g, int64_t k0, int64_t nk, const TapScales& s);
 
 // One kernel path's transforms, indexed by [OperandRounding][tile], tile [0] F(2x2,3x3), [1] F(4x4,3x3).
 struct WinogradKernels {
@@ -76,7 +80,8 @@ struct WinogradKernels {
   int rows = 6;    // R, the MR of the path's GEMM
   InputPanelFn input[kRoundings][2] = {};
   OutputPanelFn output[2] = {};
-  FilterFn filter[kRoundings][2] = {};
+  FilterFn filter[kRoundings][2] = {};  // [Int8]: the float32 transform (the taps come rounded)
+  RoundTapsFn round_taps_i8 = nullptr;
 };
 const WinogradKernels& winograd_kernels(KernelPath p);
 
