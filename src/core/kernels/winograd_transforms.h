@@ -101,6 +101,7 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
   // A row de-interleaved: ph[k][i] = its column M*i + k (rounded), so tile i's column s is ph[s % M][i + s / M] and
   // the row transform reads whole vectors.
   alignas(64) float ph[M][L + 1] = {};
+  alignas(64) float rq[M * L + 2];  // Int8: a row segment quantised
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
     for (int r = 0; r < A; ++r)
@@ -126,25 +127,37 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         // Tiles [i_lo, i_hi) lie inside the frame: columns ix0 + M i .. ix0 + M i + M - 1 in [0, w).
         const int i_lo = ix0 < 0 ? 1 : 0;
         const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-        // Each value is rounded as it is gathered: a separate pass over ph would load whole vectors that the
-        // gather's single-float stores cannot forward to (a store-forwarding stall per vector).
+        // Bf16: each value is rounded as it is gathered (a separate pass over ph would load whole vectors that the
+        // gather's single-float stores cannot forward to: a store-forwarding stall per vector).
         const float* const row = xc + iy * w;
-        const float* const inv = Rounding == OperandRounding::Int8 ? q->inv + qc + iy * w : nullptr;
-        const float* const scale = Rounding == OperandRounding::Int8 ? q->scale + qc + iy * w : nullptr;
-        const auto value = [&](int64_t col) {  // col inside the row
-          if constexpr (Rounding == OperandRounding::Int8)
-            return rounded_operand<Rounding>(row[col], inv[col], scale[col]);
-          return rounded_operand<Rounding>(row[col], 0.0f, 0.0f);
-        };
-        const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
-        for (int i = 0; i < i_lo; ++i)
-          for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
-        for (int i = i_lo; i < i_hi; ++i)
-          for (int k = 0; k < M; ++k) ph[k][i] = value(ix0 + M * i + k);
-        for (int i = i_hi; i < nl; ++i)
-          for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
-        ph[0][nl] = at(ix0 + M * nl);
-        ph[1][nl] = at(ix0 + M * nl + 1);
+        if constexpr (Rounding == OperandRounding::Int8) {
+          // Int8: the segment's columns [ix0, ix0 + span) quantised on whole vectors into rq first (zeros outside
+          // the frame; the gather's single-float loads lie inside rq's vector stores, so they forward), rather
+          // than each value with its two scales as it is gathered.
+          const float* const inv = q->inv + qc + iy * w;
+          const float* const scale = q->scale + qc + iy * w;
+          const int64_t span = M * nl + 2, lo = std::max<int64_t>(0, -ix0);
+          const int64_t hi = std::clamp<int64_t>(w - ix0, lo, span);
+          for (int64_t j = 0; j < lo; ++j) rq[j] = 0.0f;
+          for (int64_t j = lo; j < hi; ++j)
+            rq[j] = rounded_operand<Rounding>(row[ix0 + j], inv[ix0 + j], scale[ix0 + j]);
+          for (int64_t j = hi; j < span; ++j) rq[j] = 0.0f;
+          for (int i = 0; i < nl; ++i)
+            for (int k = 0; k < M; ++k) ph[k][i] = rq[M * i + k];
+          ph[0][nl] = rq[M * nl];
+          ph[1][nl] = rq[M * nl + 1];
+        } else {
+          const auto value = [&](int64_t col) { return rounded_operand<Rounding>(row[col], 0.0f, 0.0f); };
+          const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
+          for (int i = 0; i < i_lo; ++i)
+            for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
+          for (int i = i_lo; i < i_hi; ++i)
+            for (int k = 0; k < M; ++k) ph[k][i] = value(ix0 + M * i + k);
+          for (int i = i_hi; i < nl; ++i)
+            for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
+          ph[0][nl] = at(ix0 + M * nl);
+          ph[1][nl] = at(ix0 + M * nl + 1);
+        }
         for (int i = 0; i < nl; ++i) {
           float d[A], v[A];
           for (int k = 0; k < A; ++k) d[k] = ph[k % M][i + k / M];
