@@ -15,6 +15,7 @@
 
 #include "cli/commands.h"
 #include "convert/dtype_convert.h"
+#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/safetensors.h"
 #include "core/threading.h"
@@ -48,10 +49,18 @@ fs::path bench_model_dir(const std::string& config, const std::string& dtype) {
 // concurrent bench) never leaves a half-written directory that a later run would reuse.
 fs::path ensure_model(const std::string& config, const std::string& dtype) {
   const fs::path dir = bench_model_dir(config, dtype);
+  remove_abandoned_temporaries(dir.string());  // left by a killed bench (gigabytes at real size)
   if (fs::exists(dir / "model_index.json")) return dir;
   fs::create_directories(dir.parent_path());
   const fs::path tmp = dir.string() + ".tmp-" + std::to_string(::getpid());
   fs::remove_all(tmp);
+  struct RemoveUnlessRenamed {  // an error or an interrupt (core/interrupt.h) leaves no partial folder
+    fs::path path;
+    ~RemoveUnlessRenamed() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  } guard{tmp};
   if (dtype == "q8") {
     // q8 is the converter's per-channel int8 quantisation of a float model (the F16 one, reused by f16 runs).
     const fs::path base = ensure_model(config, "f16");
@@ -64,8 +73,7 @@ fs::path ensure_model(const std::string& config, const std::string& dtype) {
   }
   std::error_code ec;
   fs::rename(tmp, dir, ec);
-  if (ec) {  // another run finished first: use its directory
-    fs::remove_all(tmp);
+  if (ec) {  // another run finished first: use its directory (the guard removes ours)
     if (!fs::exists(dir / "model_index.json")) throw Error(dir.string() + ": cannot create model directory");
   }
   return dir;

@@ -5,7 +5,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cerrno>
 #include <cstdint>
 #include <cstring>
@@ -188,6 +190,36 @@ int remove_stale_temporaries(const std::string& target) {
   for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     if (name.rfind(prefix, 0) == 0 && fs::remove_all(it->path(), ec) > 0) ++removed;
+  }
+  return removed;
+}
+
+namespace {
+// The newest modification time of p and, for a folder, of everything in it.
+fs::file_time_type newest_change(const fs::path& p) {
+  std::error_code ec;
+  fs::file_time_type newest = fs::last_write_time(p, ec);
+  if (fs::is_directory(p, ec))
+    for (fs::recursive_directory_iterator it(p, ec), end; !ec && it != end; it.increment(ec))
+      newest = std::max(newest, fs::last_write_time(it->path(), ec));
+  return newest;
+}
+}  // namespace
+
+int remove_abandoned_temporaries(const std::string& path, double idle_seconds) {
+  const fs::path t = fs::path(path).lexically_normal();
+  const fs::path parent = t.parent_path().empty() ? fs::path(".") : t.parent_path();
+  const std::string prefix = t.filename().string() + ".tmp";
+  using Duration = fs::file_time_type::duration;
+  const auto idle = std::chrono::duration_cast<Duration>(std::chrono::duration<double>(idle_seconds));
+  const auto cutoff = fs::file_time_type::clock::now() - idle;
+  std::error_code ec;
+  int removed = 0;
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0 || newest_change(it->path()) > cutoff) continue;
+    std::error_code rm;
+    if (fs::remove_all(it->path(), rm) > 0 && !rm) ++removed;
   }
   return removed;
 }

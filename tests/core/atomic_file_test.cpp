@@ -5,6 +5,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -77,6 +78,36 @@ TEST_F(AtomicOutputs, StaleTemporariesOfAKilledRunAreFound) {
   EXPECT_EQ(remove_stale_temporaries((root / "clip").string()), 1);
   EXPECT_FALSE(fs::exists(root / ".clip.tmp-123-0"));
   EXPECT_TRUE(fs::exists(root / ".other.tmp-123-0"));
+}
+
+// Temporaries of a cache entry left by a killed process go once nothing in them has changed for the idle time; a
+// live writer's (a file in it changed lately), other entries' and the entry itself stay.
+TEST_F(AtomicOutputs, AbandonedTemporariesGoLiveOnesStay) {
+  const auto age = [](const fs::path& p, int seconds) {
+    fs::last_write_time(p, fs::file_time_type::clock::now() - std::chrono::seconds(seconds));
+  };
+  fs::create_directories(root / "model.tmp-41" / "unet");
+  put(root / "model.tmp-41" / "unet" / "w.safetensors", "old");
+  age(root / "model.tmp-41" / "unet" / "w.safetensors", 7200);
+  age(root / "model.tmp-41" / "unet", 7200);
+  age(root / "model.tmp-41", 7200);
+  fs::create_directories(root / "model.tmp-42" / "unet");  // a live writer: its folders old, one file fresh
+  put(root / "model.tmp-42" / "unet" / "w.safetensors", "being written");
+  age(root / "model.tmp-42" / "unet", 7200);
+  age(root / "model.tmp-42", 7200);
+  put(root / "w.safetensors.tmp.43", "old");
+  age(root / "w.safetensors.tmp.43", 7200);
+  put(root / "other.tmp-44", "old");
+  age(root / "other.tmp-44", 7200);
+  fs::create_directories(root / "model");
+  age(root / "model", 7200);
+  EXPECT_EQ(remove_abandoned_temporaries((root / "model").string(), 3600), 1);
+  EXPECT_EQ(remove_abandoned_temporaries((root / "w.safetensors").string(), 3600), 1);
+  EXPECT_FALSE(fs::exists(root / "model.tmp-41"));
+  EXPECT_TRUE(fs::exists(root / "model.tmp-42" / "unet" / "w.safetensors"));
+  EXPECT_FALSE(fs::exists(root / "w.safetensors.tmp.43"));
+  EXPECT_TRUE(fs::exists(root / "other.tmp-44"));
+  EXPECT_TRUE(fs::exists(root / "model"));
 }
 
 TEST_F(AtomicOutputs, AFolderThatIsNotAnEarlierOutputIsNeverReplaced) {
