@@ -124,7 +124,9 @@ const Command kCommands[] = {
      "egopd bench TARGET [options] [--threads T] [--conv direct|winograd|auto] [--json]\n"
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
      "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d.\n"
-     "  --conv: the convolution algorithm (see egopd --help); the report records it."},
+     "  --conv: the convolution algorithm (see egopd --help); the report records it.\n"
+     "  pipeline and unet write their synthetic weights once into $XDG_CACHE_HOME/egopd (else ~/.cache/egopd)\n"
+     "  and reuse them (3-6 GB at real size: delete the bench-* entries to free the space)."},
 };
 
 int cmd_bench(const Args& a) {

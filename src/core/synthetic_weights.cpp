@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 #include "core/atomic_file.h"
@@ -50,6 +51,19 @@ void synthetic_values(const std::string& name, const Shape& shape, uint64_t seed
       out[i] = float((2.0 * u - 1.0) * bound);
     }
   }
+}
+
+std::string synthetic_weights_id(const std::vector<std::pair<std::string, Shape>>& params, DType dtype,
+                                 uint64_t seed) {
+  std::string key = dtype_name(dtype);
+  key.append(" ").append(std::to_string(seed));
+  for (const auto& [name, shape] : params) {
+    key.append(";").append(name);
+    for (int64_t d : shape.vec()) key.append(" ").append(std::to_string(d));
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(name_hash(key)));
+  return hex;
 }
 
 void write_synthetic_safetensors(const std::string& path, const std::vector<std::pair<std::string, Shape>>& params,
