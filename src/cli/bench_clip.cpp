@@ -1,12 +1,10 @@
 // `egopd bench clip_image` / `egopd bench clip_text`: the real-size SVD-xt CLIP towers (OpenCLIP ViT-H/14 image
 // tower at 224x224; OpenCLIP-H text tower at 77 tokens) with deterministic random weights.
 #include <time.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -14,11 +12,9 @@
 #include "clip_image/clip_vision.h"
 #include "clip_text/clip_text.h"
 #include "core/error.h"
-#include "core/synthetic_weights.h"
 #include "core/threading.h"
 
 namespace egopd {
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -59,19 +55,13 @@ BenchOptions read_options(const Args& a, const std::string& target) {
   return o;
 }
 
-// Random weights for every parameter a model asks for, written to a temporary file and mapped back; the file is
-// unlinked right away (the mapping keeps it readable).
+// Random weights for every parameter a model asks for (cached: bench_synthetic_weights).
 template <class Model, class Config>
-std::shared_ptr<const WeightMap> synthetic_weights(const Config& cfg, const std::string& label, DType dtype) {
+std::shared_ptr<const WeightMap> synthetic_weights(const Config& cfg, const std::string& bench,
+                                                   const std::string& label, DType dtype) {
   auto recorder = std::make_shared<WeightMap>(WeightMap::recorder(label));
   Model shape_only(cfg, recorder);
-  const std::string tmp =
-      (fs::temp_directory_path() / ("egopd-bench-" + label + "-" + std::to_string(::getpid()) + ".safetensors"))
-          .string();
-  write_synthetic_safetensors(tmp, recorder->recorded(), dtype, 1234);
-  auto weights = std::make_shared<const WeightMap>(WeightMap::load_file(tmp, label));
-  std::remove(tmp.c_str());
-  return weights;
+  return bench_synthetic_weights(bench, label, recorder->recorded(), dtype);
 }
 
 // Median wall seconds of `repeat` calls after one untimed warm-up call (first touch of the mapped weights), and the
@@ -106,7 +96,7 @@ int bench_clip_image(const Args& a) {
   const BenchOptions o = read_options(a, "clip_image");
   const ClipVisionConfig cfg = svd_xt_image_encoder();
   const ClipVisionModelWithProjection model(
-      cfg, synthetic_weights<ClipVisionModelWithProjection>(cfg, "image_encoder", o.dtype));
+      cfg, synthetic_weights<ClipVisionModelWithProjection>(cfg, "clip_image", "image_encoder", o.dtype));
   Tensor pixels({1, 3, cfg.image_size, cfg.image_size});
   for (int64_t i = 0; i < pixels.numel(); ++i) pixels[i] = float((i * 7919) % 2001) / 1000.0f - 1.0f;
   float sink = 0;
@@ -129,7 +119,7 @@ int bench_clip_image(const Args& a) {
 int bench_clip_text(const Args& a) {
   const BenchOptions o = read_options(a, "clip_text");
   const ClipTextConfig cfg = openclip_h_text_encoder();
-  const ClipTextModel model(cfg, synthetic_weights<ClipTextModel>(cfg, "text_encoder", o.dtype));
+  const ClipTextModel model(cfg, synthetic_weights<ClipTextModel>(cfg, "clip_text", "text_encoder", o.dtype));
   const int64_t len = cfg.max_position_embeddings;
   // A 60-token prompt: BOS, content ids, EOS, then padding with 0 (every position is computed either way).
   IdTensor ids{Shape{1, len}, std::vector<int64_t>(size_t(len), 0)};

@@ -1,33 +1,21 @@
 // `egopd bench unet`: one or more denoiser evaluations of a real-size U-Net with deterministic random weights, after
 // untimed warm-up evaluations (the first evaluation of a process pays the first touch of the weights, activations
-// and kernel scratch: up to 40% slower than the steady state of a sampler's later steps). The weights file is
-// written once into the cache folder and reused, as `bench pipeline` does with its models.
-#include <unistd.h>
-
+// and kernel scratch: up to 40% slower than the steady state of a sampler's later steps). The weights are
+// written once into the cache folder and reused (bench_synthetic_weights).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdint>
 #include <cstdio>
-#include <filesystem>
 #include <utility>
 
 #include "cli/commands.h"
-#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/kernels/kernel_profile.h"
-#include "core/synthetic_weights.h"
 #include "core/threading.h"
 #include "core/timing.h"
-#include "pipeline/predict_run.h"
 #include "unet3d/unet.h"
 
 namespace egopd {
-namespace fs = std::filesystem;
-
-namespace {
-constexpr uint64_t kWeightSeed = 1234;
-}  // namespace
 
 DType parse_weight_dtype(const std::string& s, const std::string& option) {
   if (s == "f32") return DType::F32;
@@ -54,36 +42,13 @@ int bench_unet(const Args& a) {
 
   UNetConfig cfg = UNetConfig::svd_xt(pifr);
   std::shared_ptr<const WeightMap> weights;
-  std::string tmp;
   if (!weights_dir.empty()) {
     weights = std::make_shared<WeightMap>(WeightMap::load_dir(weights_dir, "diffusion_pytorch_model", "unet"));
   } else {
     auto recorder = std::make_shared<WeightMap>(WeightMap::recorder("unet"));
     UNetSpatioTemporal shape_only(cfg, recorder);
-    const auto& params = recorder->recorded();
-    const std::string root = cache_root();
-    std::string path;
-    if (root.empty()) {
-      tmp = (fs::temp_directory_path() / ("egopd-bench-unet-" + std::to_string(::getpid()) + ".safetensors")).string();
-      path = tmp;
-    } else {
-      path = (fs::path(root) / ("bench-unet-svd-xt-" + synthetic_weights_id(params, dtype, kWeightSeed) +
-                                ".safetensors")).string();
-      remove_abandoned_temporaries(path);  // left by a killed bench
-    }
-    if (!fs::exists(path)) {
-      std::fprintf(stderr, "bench unet: writing %zu random %s tensors to %s\n", params.size(), dtype_name(dtype),
-                   path.c_str());
-      write_synthetic_safetensors(path, params, dtype, kWeightSeed);  // atomic: never a half-written cache file
-    }
-    weights = std::make_shared<WeightMap>(WeightMap::load_file(path, "unet"));
+    weights = bench_synthetic_weights("unet", "unet", recorder->recorded(), dtype);
   }
-  struct Cleanup {
-    std::string path;
-    ~Cleanup() {
-      if (!path.empty()) std::remove(path.c_str());
-    }
-  } cleanup{tmp};
 
   UNetSpatioTemporal unet(cfg, weights);
   const int64_t h = size / 8, w = size / 8;

@@ -1,11 +1,16 @@
 #pragma once
 // Every `egopd` command and `egopd bench` target is a function taking its parsed options; main.cpp dispatches.
 #include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "cli/args.h"
 #include "core/dtype.h"
+#include "core/tensor.h"
+#include "core/weights.h"
 
 namespace egopd {
 
@@ -28,6 +33,12 @@ int bench_vae_decode(const Args& a);
 int bench_pipeline(const Args& a);
 // f32 | f16 | bf16 -> DType (error naming the option otherwise)
 DType parse_weight_dtype(const std::string& s, const std::string& option);
+// Deterministic random weights for every parameter of `params` (from WeightMap::recorder()), mapped as `label`:
+// the file bench-<bench>-<synthetic_weights_id>.safetensors in the cache folder (cache_root()), written once and
+// reused; without a cache folder a temporary file, unlinked once mapped.
+std::shared_ptr<const WeightMap> bench_synthetic_weights(const std::string& bench, const std::string& label,
+                                                         const std::vector<std::pair<std::string, Shape>>& params,
+                                                         DType dtype);
 
 // Shared reporting of every bench target: one JSON object (--json) or a short text block with at least
 // seconds (median per call), gflops, percent_of_peak and peak_rss_bytes.

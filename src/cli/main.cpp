@@ -125,8 +125,8 @@ const Command kCommands[] = {
      "  Measures one target and prints seconds (median per call), GFLOP/s, % of peak and peak RSS.\n"
      "  Targets: pipeline, unet, vae_encode, vae_decode, clip_image, clip_text, gemm, conv2d.\n"
      "  --conv: the convolution algorithm (see egopd --help); the report records it.\n"
-     "  pipeline and unet write their synthetic weights once into $XDG_CACHE_HOME/egopd (else ~/.cache/egopd)\n"
-     "  and reuse them (3-6 GB at real size: delete the bench-* entries to free the space)."},
+     "  pipeline, unet and clip_* write their synthetic weights once into $XDG_CACHE_HOME/egopd (else\n"
+     "  ~/.cache/egopd) and reuse them (up to 6 GB each at real size: delete the bench-* entries to free the space)."},
 };
 
 int cmd_bench(const Args& a) {
