@@ -120,15 +120,7 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
             for (int j = s.j0; j < s.j1; ++j) t[r][l][j] = 0.0f;
           continue;
         }
-        // The row is read in place; only the tiles that reach past an edge read through a bounds check (copying
-        // every row cost about a tenth of a 128-channel 256x256 convolution, copying the edge rows a twentieth:
-        // at 256 columns every row segment touches an edge).
         const int64_t ix0 = s.tx0 * M - 1;
-        // Tiles [i_lo, i_hi) lie inside the frame: columns ix0 + M i .. ix0 + M i + M - 1 in [0, w).
-        const int i_lo = ix0 < 0 ? 1 : 0;
-        const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-        // Bf16: each value is rounded as it is gathered (a separate pass over ph would load whole vectors that the
-        // gather's single-float stores cannot forward to: a store-forwarding stall per vector).
         const float* const row = xc + iy * w;
         if constexpr (Rounding == OperandRounding::Int8) {
           // Int8: the segment's columns [ix0, ix0 + span) quantised on whole vectors into rq first (zeros outside
@@ -147,6 +139,13 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
           ph[0][nl] = rq[M * nl];
           ph[1][nl] = rq[M * nl + 1];
         } else {
+          // The row is read in place; only the tiles that reach past an edge read through a bounds check (copying
+          // every row cost about a tenth of a 128-channel 256x256 convolution, copying the edge rows a twentieth:
+          // at 256 columns every row segment touches an edge). Tiles [i_lo, i_hi) lie inside the frame: columns
+          // ix0 + M i .. ix0 + M i + M - 1 in [0, w). Bf16 rounds each value as it is gathered (a separate pass
+          // over ph would load whole vectors that the gather's single-float stores cannot forward to).
+          const int i_lo = ix0 < 0 ? 1 : 0;
+          const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
           const auto value = [&](int64_t col) { return rounded_operand<Rounding>(row[col], 0.0f, 0.0f); };
           const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
           for (int i = 0; i < i_lo; ++i)
