@@ -19,11 +19,9 @@ std::shared_ptr<const WeightMap> bench_synthetic_weights(const std::string& benc
   constexpr uint64_t kSeed = 1234;
   const std::string root = cache_root();
   const bool cached = !root.empty();
-  const std::string path =
-      cached ? (fs::path(root) / ("bench-" + bench + "-" + synthetic_weights_id(params, dtype, kSeed) + ".safetensors"))
-                   .string()
-             : (fs::temp_directory_path() / ("egopd-bench-" + bench + "-" + std::to_string(::getpid()) + ".safetensors"))
-                   .string();
+  const std::string name = cached ? "bench-" + bench + "-" + synthetic_weights_id(params, dtype, kSeed)
+                                  : "egopd-bench-" + bench + "-" + std::to_string(::getpid());
+  const std::string path = ((cached ? fs::path(root) : fs::temp_directory_path()) / (name + ".safetensors")).string();
   if (cached) remove_abandoned_temporaries(path);  // left by a killed bench
   if (!fs::exists(path)) {
     std::fprintf(stderr, "bench %s: writing %zu random %s tensors to %s\n", bench.c_str(), params.size(),
