@@ -37,12 +37,15 @@ constexpr uint64_t kModelSeed = 0;
 constexpr int kSourceSize = 640;
 constexpr double kSourceFps = 5;
 
-// $XDG_CACHE_HOME/egopd/bench-<config>-<dtype>, else under the temp folder. One directory per dtype serves every
-// step count: the teacher and its AnimateLCM students have the same architecture, and the run picks the sampler.
+// $XDG_CACHE_HOME/egopd/bench-<config>-<dtype>-<synthetic_model_id>, else under the temp folder; q8 is named by
+// the F16 model it quantises. One directory per dtype serves every step count: the teacher and its AnimateLCM
+// students have the same architecture, and the run picks the sampler.
 fs::path bench_model_dir(const std::string& config, const std::string& dtype) {
   std::string root = cache_root();
   if (root.empty()) root = (fs::temp_directory_path() / "egopd-cache").string();
-  return fs::path(root) / ("bench-" + config + "-" + dtype);
+  const DType weights = parse_weight_dtype(dtype == "q8" ? "f16" : dtype, "dtype");
+  const std::string id = synthetic_model_id(config, kModelSeed, weights, /*lcm_steps=*/0);
+  return fs::path(root) / ("bench-" + config + "-" + dtype + "-" + id);
 }
 
 // Writes the model into a private temporary folder and renames it into place, so an interrupted write (or a

@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <cstring>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/safetensors.h"
 
 namespace egopd {
@@ -16,12 +16,6 @@ static uint64_t splitmix64(uint64_t& s) {
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
   return z ^ (z >> 31);
-}
-
-static uint64_t name_hash(const std::string& s) {  // FNV-1a
-  uint64_t h = 1469598103934665603ull;
-  for (unsigned char c : s) h = (h ^ c) * 1099511628211ull;
-  return h;
 }
 
 static bool ends_with(const std::string& s, const std::string& t) {
@@ -40,7 +34,7 @@ void synthetic_values(const std::string& name, const Shape& shape, uint64_t seed
     return;
   }
   const double bound = one_d ? 0.02 : 1.0 / std::sqrt(double(std::max<int64_t>(1, n / shape[0])));
-  const uint64_t base = name_hash(name) ^ (seed * 0x2545f4914f6cdd1dull);
+  const uint64_t base = fnv1a(name) ^ (seed * 0x2545f4914f6cdd1dull);
   constexpr int64_t kChunk = 1 << 16;  // independent streams per chunk so generation parallelises
 #pragma omp parallel for schedule(static) if (n > 4 * kChunk)
   for (int64_t c0 = 0; c0 < n; c0 += kChunk) {
@@ -53,17 +47,36 @@ void synthetic_values(const std::string& name, const Shape& shape, uint64_t seed
   }
 }
 
+// A hash of what synthetic_values writes for probes that reach each of its cases (a mix factor, a norm scale, a
+// bias, a matrix of several parallel chunks), so that a cache key changes with the generator itself: a build whose
+// values differ never reuses another build's cached file.
+static uint64_t generator_fingerprint() {
+  static const uint64_t fingerprint = [] {
+    const std::pair<const char*, Shape> probes[] = {{"probe.mix_factor", Shape{3}},
+                                                    {"probe.norm.weight", Shape{5}},
+                                                    {"probe.bias", Shape{7}},
+                                                    {"probe.weight", Shape{5, 1 << 16}}};
+    uint64_t h = kFnv1aBasis;
+    std::vector<float> values;
+    for (const auto& [name, shape] : probes) {
+      values.resize(size_t(shape.numel()));
+      synthetic_values(name, shape, 1234, values.data());
+      h = fnv1a(values.data(), values.size() * sizeof(float), h);
+    }
+    return h;
+  }();
+  return fingerprint;
+}
+
 std::string synthetic_weights_id(const std::vector<std::pair<std::string, Shape>>& params, DType dtype,
                                  uint64_t seed) {
   std::string key = dtype_name(dtype);
-  key.append(" ").append(std::to_string(seed));
+  key.append(" ").append(std::to_string(seed)).append(" ").append(std::to_string(generator_fingerprint()));
   for (const auto& [name, shape] : params) {
     key.append(";").append(name);
     for (int64_t d : shape.vec()) key.append(" ").append(std::to_string(d));
   }
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(name_hash(key)));
-  return hex;
+  return hex16(fnv1a(key));
 }
 
 void write_synthetic_safetensors(const std::string& path, const std::vector<std::pair<std::string, Shape>>& params,

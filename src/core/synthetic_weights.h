@@ -17,7 +17,8 @@ void write_synthetic_safetensors(const std::string& path, const std::vector<std:
                                  DType dtype, uint64_t seed);
 
 // Sixteen hex digits that identify the file write_synthetic_safetensors writes for these arguments (a hash of every
-// name and shape, the dtype and the seed): a cache key, so that a cached file is never reused for other parameters.
+// name and shape, the dtype, the seed and the values the generator gives for a few probes): a cache key, so that a
+// cached file is never reused for other parameters or by a build whose generator writes other values.
 std::string synthetic_weights_id(const std::vector<std::pair<std::string, Shape>>& params, DType dtype,
                                  uint64_t seed);
 

@@ -40,7 +40,8 @@ using namespace detail;
 namespace {
 
 // The built-in demo model: the "tiny" preset as a 4-step AnimateLCM student, so the demo stays within seconds.
-// The cache folder name encodes every parameter, so a change here never reuses a stale directory.
+// The cache folder is named by these parameters and synthetic_model_id, so a change here, in the model classes or in
+// the generator never reuses a stale directory.
 constexpr uint64_t kBuiltinSeed = 0;
 constexpr int kBuiltinLcmSteps = 4;
 constexpr DType kBuiltinDType = DType::F32;
@@ -441,10 +442,12 @@ std::string cache_root() {
 
 std::string default_model_dir(const std::string& out_dir) {
   const std::string root = cache_root();
-  if (!root.empty()) return (fs::path(root) / kBuiltinName).string();
+  const std::string name = std::string(kBuiltinName) + "-" +
+                           synthetic_model_id("tiny", kBuiltinSeed, kBuiltinDType, kBuiltinLcmSteps);
+  if (!root.empty()) return (fs::path(root) / name).string();
   // Beside the output folder, not in it: the output folder is replaced as a whole by each run.
   const fs::path parent = fs::path(out_dir).lexically_normal().parent_path();
-  return ((parent.empty() ? fs::path(".") : parent) / ".egopd-default-model").string();
+  return ((parent.empty() ? fs::path(".") : parent) / (".egopd-" + name)).string();
 }
 
 PredictModel::PredictModel(const PredictOptions& o, const RunHooks& hooks) {

@@ -92,8 +92,9 @@ VarySpec make_vary(const std::string& field, std::vector<std::string> values);
 // Folder name of one variant, e.g. weight_355g, weight_omit (file-system safe).
 std::string variant_folder_name(const std::string& field, const std::string& formatted_value);
 
-// Folder of the built-in synthetic model: $XDG_CACHE_HOME/egopd/..., else ~/.cache/egopd/..., else (not writable)
-// .egopd-default-model beside out_dir. Created on first use.
+// Folder of the built-in synthetic model, tiny-synthetic-f32-lcm4-seed0-<synthetic_model_id> in $XDG_CACHE_HOME/egopd,
+// else ~/.cache/egopd, else (neither writable) the same name with a leading ".egopd-" beside out_dir. Created on first
+// use.
 std::string default_model_dir(const std::string& out_dir);
 // egopd's cache folder ($XDG_CACHE_HOME/egopd, else ~/.cache/egopd), created; empty when neither is writable.
 std::string cache_root();

@@ -10,6 +10,7 @@
 #include "clip_image/clip_vision.h"
 #include "clip_text/clip_text.h"
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/install_dirs.h"
 #include "core/safetensors.h"
 #include "core/synthetic_weights.h"
@@ -270,6 +271,10 @@ void copy_file_atomic_simple(const fs::path& from, const fs::path& to) {
   write_file_atomic(to.string(), data);
 }
 
+// Distinct seeds per component (index i of model_components()), so components with equal key names do not get
+// equal values.
+uint64_t component_seed(uint64_t seed, size_t i) { return (seed + i) * 0x9e3779b97f4a7c15ull + 1; }
+
 // Remove weight files of another layout (sharded index, variants) that would shadow or confuse the new file.
 void remove_stale_weights(const fs::path& dir, const std::string& stem) {
   std::error_code ec;
@@ -279,22 +284,35 @@ void remove_stale_weights(const fs::path& dir, const std::string& stem) {
 
 }  // namespace
 
+std::string synthetic_model_id(const std::string& preset, uint64_t seed, DType dtype, int lcm_steps) {
+  uint64_t h = fnv1a(scheduler_config_json(lcm_steps).dump());
+  h = fnv1a(preprocessor_config_json().dump(), h);
+  h = fnv1a(model_index_json(lcm_steps, true, true).dump(), h);
+  for (size_t i = 0; i < model_components().size(); ++i) {
+    const ModelComponent& c = model_components()[i];
+    const json cfg = preset_config(preset, c.folder);
+    h = fnv1a(cfg.dump(), h);
+    const auto params = component_parameters(c.folder, Config(cfg, std::string(c.folder) + "/config.json"));
+    h = fnv1a(synthetic_weights_id(params, dtype, component_seed(seed, i)), h);
+  }
+  return hex16(h);
+}
+
 void write_synthetic_model(const std::string& dir, const std::string& preset, uint64_t seed, DType dtype,
                            int lcm_steps) {
   if (!is_float_weight(dtype)) throw Error(std::string("synthetic weights must be f32, f16 or bf16, not ") + dtype_name(dtype));
   const json sched = scheduler_config_json(lcm_steps);  // validates lcm_steps before anything is written
   const fs::path root(dir);
   fs::create_directories(root);
-  uint64_t component_seed = seed;
-  for (const auto& c : model_components()) {
+  for (size_t i = 0; i < model_components().size(); ++i) {
+    const ModelComponent& c = model_components()[i];
     const fs::path d = root / c.folder;
     fs::create_directories(d);
     const json cfg = preset_config(preset, c.folder);
     const auto params = component_parameters(c.folder, Config(cfg, (d / "config.json").string()));
     remove_stale_weights(d, c.stem);
-    // Distinct seeds per component, so components with equal key names do not get equal values.
     write_synthetic_safetensors((d / (std::string(c.stem) + ".safetensors")).string(), params, dtype,
-                                component_seed++ * 0x9e3779b97f4a7c15ull + 1);
+                                component_seed(seed, i));
     write_json_atomic((d / "config.json").string(), cfg);
   }
   const fs::path tok = root / "tokenizer";

@@ -49,6 +49,12 @@ std::string shipped_tokenizer_dir();
 void write_synthetic_model(const std::string& dir, const std::string& preset, uint64_t seed, DType dtype,
                            int lcm_steps);
 
+// Sixteen hex digits that identify what write_synthetic_model writes for these arguments (every component's config,
+// parameter names and shapes, seed and dtype, the generator's values, the scheduler, preprocessor and index files;
+// not the shipped tokenizer files): a cache folder named by it is never reused by a build that would write another
+// model.
+std::string synthetic_model_id(const std::string& preset, uint64_t seed, DType dtype, int lcm_steps);
+
 // Writes JSON (indented, trailing newline) atomically.
 void write_json_atomic(const std::string& path, const nlohmann::json& j);
 

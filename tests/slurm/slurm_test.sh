@@ -27,8 +27,9 @@ eval "$("$repo/scripts/slurm/local-cluster.sh" env)"
 
 # Six clips of the built-in sample clip under different prompts; ground truth: a taxel CSV per clip.
 "$egopd" predict --out "$work/demo" --size 128 --frames 8 --threads 1 2>"$work/demo.log" || fail "demo: $(tail -1 "$work/demo.log")"
-model=$XDG_CACHE_HOME/egopd/tiny-synthetic-f32-lcm4-seed0
-[ -f "$model/model_index.json" ] || fail "no built-in model in $model"
+models=("$XDG_CACHE_HOME"/egopd/tiny-synthetic-f32-lcm4-seed0-*)  # named by synthetic_model_id
+model=${models[0]}
+[ ${#models[@]} -eq 1 ] && [ -f "$model/model_index.json" ] || fail "no single built-in model in $XDG_CACHE_HOME/egopd"
 for i in 1 2 3 4 5 6; do
   echo "{\"id\": \"clip$i\", \"frames\": \"demo/sample_clip.mp4\", \"meta\": {\"obj_name\": \"a box\", \"weight\": $((i * 100))},"\
        "\"gt\": \"demo/taxels.csv\", \"split\": \"$([ $((i % 2)) -eq 0 ] && echo even || echo odd)\"}"
