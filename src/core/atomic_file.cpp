@@ -181,17 +181,30 @@ void AtomicDir::commit() {
   sync_folder(fs::path(target_).parent_path());
 }
 
-int remove_stale_temporaries(const std::string& target) {
-  const fs::path t = normal_target(target);
+namespace {
+// Removes the entries beside `target` that are its temporaries (AtomicDir's `.<name>.tmp-*`, and with
+// writers_too AtomicFileWriter's `<name>.tmp.*` and a cache's `<name>.tmp-*`) and that `abandoned` accepts;
+// returns how many.
+template <typename Pred>
+int remove_temporaries(const fs::path& target, bool writers_too, Pred abandoned) {
+  const fs::path t = normal_target(target.string());
   const fs::path parent = t.parent_path().empty() ? fs::path(".") : t.parent_path();
-  const std::string prefix = temporary_prefix(t);
+  const std::string dir_prefix = temporary_prefix(t), writer_prefix = t.filename().string() + ".tmp";
   std::error_code ec;
   int removed = 0;
   for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
-    if (name.rfind(prefix, 0) == 0 && fs::remove_all(it->path(), ec) > 0) ++removed;
+    const bool ours = name.rfind(dir_prefix, 0) == 0 || (writers_too && name.rfind(writer_prefix, 0) == 0);
+    if (!ours || !abandoned(it->path())) continue;
+    std::error_code rm;
+    if (fs::remove_all(it->path(), rm) > 0 && !rm) ++removed;
   }
   return removed;
+}
+}  // namespace
+
+int remove_stale_temporaries(const std::string& target) {
+  return remove_temporaries(target, false, [](const fs::path&) { return true; });
 }
 
 namespace {
@@ -207,21 +220,10 @@ fs::file_time_type newest_change(const fs::path& p) {
 }  // namespace
 
 int remove_abandoned_temporaries(const std::string& path, double idle_seconds) {
-  const fs::path t = fs::path(path).lexically_normal();
-  const fs::path parent = t.parent_path().empty() ? fs::path(".") : t.parent_path();
-  const std::string prefix = t.filename().string() + ".tmp";
   using Duration = fs::file_time_type::duration;
   const auto idle = std::chrono::duration_cast<Duration>(std::chrono::duration<double>(idle_seconds));
   const auto cutoff = fs::file_time_type::clock::now() - idle;
-  std::error_code ec;
-  int removed = 0;
-  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.rfind(prefix, 0) != 0 || newest_change(it->path()) > cutoff) continue;
-    std::error_code rm;
-    if (fs::remove_all(it->path(), rm) > 0 && !rm) ++removed;
-  }
-  return removed;
+  return remove_temporaries(path, true, [&](const fs::path& p) { return newest_change(p) <= cutoff; });
 }
 
 }  // namespace egopd

@@ -59,8 +59,8 @@ class AtomicDir {
 // process; removes them and returns how many. Only for a caller that owns `target` (one writer per folder).
 int remove_stale_temporaries(const std::string& target);
 
-// Temporaries of `path` (files or folders beside it named `<name>.tmp...`: AtomicFileWriter's `.tmp.<pid>`, a
-// cache's `.tmp-<pid>`) in which nothing has changed for idle_seconds: left by a process killed outright (SIGKILL, a
+// Temporaries of `path` (files or folders beside it: AtomicFileWriter's `<name>.tmp.<pid>`, a cache's
+// `<name>.tmp-<pid>`, AtomicDir's `.<name>.tmp-*`) in which nothing has changed for idle_seconds: left by a process killed outright (SIGKILL, a
 // power cut), which no clean-up of its own could remove. Removes them and returns how many. Judged by age, not by
 // process id, so that a live writer on another host sharing the folder (a cluster's home) is never touched; a live
 // writer changes its temporary every few seconds, hence the default hour.

@@ -457,6 +457,7 @@ PredictModel::PredictModel(const PredictOptions& o, const RunHooks& hooks) {
   builtin_ = o.model_dir.empty();
   model_dir_ = builtin_ ? default_model_dir(o.out_dir) : o.model_dir;
   if (builtin_) {
+    remove_abandoned_temporaries(model_dir_);  // left by a run killed while it wrote the model
     if (!fs::exists(fs::path(model_dir_) / "model_index.json")) {
       rep.say("creating the built-in synthetic model (tiny preset, random weights) in %s", model_dir_.c_str());
       // Built beside its place and moved in whole: parallel runs (batch array tasks) never see half a model; the

@@ -99,11 +99,16 @@ TEST_F(AtomicOutputs, AbandonedTemporariesGoLiveOnesStay) {
   age(root / "w.safetensors.tmp.43", 7200);
   put(root / "other.tmp-44", "old");
   age(root / "other.tmp-44", 7200);
+  put(root / ".model.tmp-45-0", "old");  // AtomicDir's, killed outright
+  age(root / ".model.tmp-45-0", 7200);
+  put(root / ".model.tmp-46-0", "fresh");
   fs::create_directories(root / "model");
   age(root / "model", 7200);
-  EXPECT_EQ(remove_abandoned_temporaries((root / "model").string(), 3600), 1);
+  EXPECT_EQ(remove_abandoned_temporaries((root / "model").string(), 3600), 2);
   EXPECT_EQ(remove_abandoned_temporaries((root / "w.safetensors").string(), 3600), 1);
   EXPECT_FALSE(fs::exists(root / "model.tmp-41"));
+  EXPECT_FALSE(fs::exists(root / ".model.tmp-45-0"));
+  EXPECT_TRUE(fs::exists(root / ".model.tmp-46-0"));
   EXPECT_TRUE(fs::exists(root / "model.tmp-42" / "unet" / "w.safetensors"));
   EXPECT_FALSE(fs::exists(root / "w.safetensors.tmp.43"));
   EXPECT_TRUE(fs::exists(root / "other.tmp-44"));
