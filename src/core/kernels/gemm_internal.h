@@ -104,6 +104,11 @@ struct GemmPath {
   void (*pack_b_i8)(const void* b, DType dt, int64_t ldb, int nr, int64_t kc, int64_t group, float* dst) = nullptr;
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
+  // Under --conv auto, Winograd F(2x2) (frames under 8 pixels, winograd.cpp) runs on calls of at least this many
+  // pixels over all frames: below, its per-call filter transform is not paid back. 1024 where the direct convolution
+  // packs several 4x4 frames into one B panel (NR >= 32) and is twice as fast on them; 256 on AVX2, where a 4x4 frame
+  // fills a 16-column panel by itself.
+  int64_t winograd_f2_min_pixels = 1024;
   // Under Int8 and --conv auto, 3x3 convolutions take Winograd on quantised operands (winograd.h) where Winograd
   // wins in float32 and the frames are at least this wide and high (conv.cpp). Only where it beats the int8 direct
   // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and

@@ -109,6 +109,10 @@ const GemmPath& gemm_path(KernelPath which) {
     // Zen 3, bench conv2d alternating: 1280 -> 1280 0.75x the time, 640 / 1920 / 2560 -> 1280 0.75-0.96x); its 4x4
     // stay direct as in float32. vpdpbusd's beats Winograd on every VAE layer.
     p.i8_winograd_min_frame = 8;
+    // F(2x2) against the direct convolution, 1280 -> 1280 channels, float32 (AMD EPYC Zen 3, 2 threads, bench conv2d,
+    // three alternating rounds): 16 frames of 4x4 (256 pixels) 0.63x the time (one thread 0.6x, bf16 0.82x, 2560 ->
+    // 1280 0.74-0.89x), 16 of 6x6 0.63x, 8 of 4x4 0.8-1.1x, 4 of 4x4 even, 1 of 4x4 2.5x.
+    p.winograd_f2_min_pixels = 256;
     // Temporal convolutions: F(2,3) on quantised transforms 0.72-0.83x the time of the int8 direct convolution on the
     // U-Net's and the VAE decoder's layers (AMD EPYC Zen 3, kernels_bench alternating, 128-1280 channels).
     p.i8_temporal_winograd = true;
