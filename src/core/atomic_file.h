@@ -60,10 +60,10 @@ class AtomicDir {
 int remove_stale_temporaries(const std::string& target);
 
 // Temporaries of `path` (files or folders beside it: AtomicFileWriter's `<name>.tmp.<pid>`, a cache's
-// `<name>.tmp-<pid>`, AtomicDir's `.<name>.tmp-*`) in which nothing has changed for idle_seconds: left by a process killed outright (SIGKILL, a
-// power cut), which no clean-up of its own could remove. Removes them and returns how many. Judged by age, not by
-// process id, so that a live writer on another host sharing the folder (a cluster's home) is never touched; a live
-// writer changes its temporary every few seconds, hence the default hour.
+// `<name>.tmp-<pid>`, AtomicDir's `.<name>.tmp-*`) in which nothing has changed for idle_seconds: left by a process
+// killed outright (SIGKILL, a power cut), which no clean-up of its own could remove. Removes them and returns how
+// many. Judged by age, not by process id, so that a live writer on another host sharing the folder (a cluster's home)
+// is never touched; a live writer changes its temporary every few seconds, hence the default hour.
 int remove_abandoned_temporaries(const std::string& path, double idle_seconds = 3600);
 
 }  // namespace egopd

@@ -165,8 +165,8 @@ bool winograd_wins(int64_t cin, int64_t cout, int64_t n, int64_t h, int64_t w) {
   // frames (256 pixels), is even on 16 frames of 6x6 (576) and wins 1.15-1.2x at 64 frames of 4x4 (1024). Where a
   // frame fills a panel alone the direct convolution has no such gain (GemmPath::winograd_f2_min_pixels).
   if (cin < 16 || cout < 16 || std::min(h, w) < 4) return false;
-  return n * h * w >= (winograd_tile_for(h, w) == WinogradTile::F4x4 ? 512
-                                                                       : gemm_detail::gemm_path().winograd_f2_min_pixels);
+  const bool f4 = winograd_tile_for(h, w) == WinogradTile::F4x4;
+  return n * h * w >= (f4 ? 512 : gemm_detail::gemm_path().winograd_f2_min_pixels);
 }
 
 namespace {
