@@ -37,49 +37,25 @@ constexpr uint64_t kModelSeed = 0;
 constexpr int kSourceSize = 640;
 constexpr double kSourceFps = 5;
 
-// $XDG_CACHE_HOME/egopd/bench-<config>-<dtype>-<synthetic_model_id>, else under the temp folder; q8 is named by
-// the F16 model it quantises. One directory per dtype serves every step count: the teacher and its AnimateLCM
-// students have the same architecture, and the run picks the sampler.
-fs::path bench_model_dir(const std::string& config, const std::string& dtype) {
-  std::string root = cache_root();
-  if (root.empty()) root = (fs::temp_directory_path() / "egopd-cache").string();
-  const DType weights = parse_weight_dtype(dtype == "q8" ? "f16" : dtype, "dtype");
-  const std::string id = synthetic_model_id(config, kModelSeed, weights, /*lcm_steps=*/0);
-  return fs::path(root) / ("bench-" + config + "-" + dtype + "-" + id);
-}
-
-// Writes the model into a private temporary folder and renames it into place, so an interrupted write (or a
-// concurrent bench) never leaves a half-written directory that a later run would reuse.
+// bench-<config>-<dtype>-<synthetic_model_id> in the benchmarks' cache folder (cached_bench_folder); q8 is named by the
+// F16 model it quantises. One folder per dtype serves every step count: the teacher and its AnimateLCM students
+// have the same architecture, and the run picks the sampler.
 fs::path ensure_model(const std::string& config, const std::string& dtype) {
-  const fs::path dir = bench_model_dir(config, dtype);
-  remove_abandoned_temporaries(dir.string());  // left by a killed bench (gigabytes at real size)
-  if (fs::exists(dir / "model_index.json")) return dir;
-  fs::create_directories(dir.parent_path());
-  const fs::path tmp = dir.string() + ".tmp-" + std::to_string(::getpid());
-  fs::remove_all(tmp);
-  struct RemoveUnlessRenamed {  // an error or an interrupt (core/interrupt.h) leaves no partial folder
-    fs::path path;
-    ~RemoveUnlessRenamed() {
-      std::error_code ec;
-      fs::remove_all(path, ec);
+  const DType weights = parse_weight_dtype(dtype == "q8" ? "f16" : dtype, "dtype");
+  const std::string name =
+      "bench-" + config + "-" + dtype + "-" + synthetic_model_id(config, kModelSeed, weights, /*lcm_steps=*/0);
+  return cached_bench_folder(name, "model_index.json", [&](const std::string& tmp) {
+    if (dtype == "q8") {
+      // q8 is the converter's per-channel int8 quantisation of a float model (the F16 one, reused by f16 runs).
+      const fs::path base = ensure_model(config, "f16");
+      std::fprintf(stderr, "bench pipeline: quantising %s to q8 (%s)\n", base.c_str(), name.c_str());
+      convert_dtype(base.string(), tmp, TargetDType::Q8, WriteOptions{});
+    } else {
+      std::fprintf(stderr, "bench pipeline: writing a synthetic %s model (%s) as %s\n", config.c_str(), dtype.c_str(),
+                   name.c_str());
+      write_synthetic_model(tmp, config, kModelSeed, weights, /*lcm_steps=*/0);
     }
-  } guard{tmp};
-  if (dtype == "q8") {
-    // q8 is the converter's per-channel int8 quantisation of a float model (the F16 one, reused by f16 runs).
-    const fs::path base = ensure_model(config, "f16");
-    std::fprintf(stderr, "bench pipeline: quantising %s to q8 in %s\n", base.c_str(), dir.c_str());
-    convert_dtype(base.string(), tmp.string(), TargetDType::Q8, WriteOptions{});
-  } else {
-    std::fprintf(stderr, "bench pipeline: writing a synthetic %s model (%s) to %s\n", config.c_str(), dtype.c_str(),
-                 dir.c_str());
-    write_synthetic_model(tmp.string(), config, kModelSeed, parse_weight_dtype(dtype, "dtype"), /*lcm_steps=*/0);
-  }
-  std::error_code ec;
-  fs::rename(tmp, dir, ec);
-  if (ec) {  // another run finished first: use its directory (the guard removes ours)
-    if (!fs::exists(dir / "model_index.json")) throw Error(dir.string() + ": cannot create model directory");
-  }
-  return dir;
+  });
 }
 
 uint64_t weight_file_bytes(const fs::path& dir) {

@@ -1,8 +1,6 @@
 // `egopd bench vae_encode` / `egopd bench vae_decode`: the real-size SVD-xt temporal VAE (vae.md §1) with
 // deterministic random weights (written once into the cache folder), on a clip of --frames frames at --size x --size
 // pixels.
-#include <unistd.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -11,14 +9,12 @@
 #include <vector>
 
 #include "cli/commands.h"
-#include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/kernels/kernel_profile.h"
 #include "core/memory.h"
 #include "core/synthetic_weights.h"
 #include "core/threading.h"
-#include "pipeline/predict_run.h"
 #include "vae/temporal_vae.h"
 #include "vae/vae_random.h"
 
@@ -53,39 +49,17 @@ VaeBenchOptions read_options(const Args& a, const std::string& target, bool deco
   return o;
 }
 
-// The model folder, bench-vae-<id> in the cache folder (id: a hash of the config, the parameters, dtype and seed and
-// the generator's values), written once and reused; without a cache folder a temporary one that lives only until
-// the weights are mapped (the mapping keeps the data readable).
-class VaeModelDir {
- public:
-  VaeModelDir(const VaeConfig& cfg, DType dtype) {
-    constexpr uint64_t kSeed = 1234;
-    const std::string root = cache_root();
-    if (root.empty()) {
-      path_ = (fs::temp_directory_path() / ("egopd-bench-vae-" + std::to_string(::getpid()))).string();
-      temporary_ = true;
-      write_random_vae(path_, cfg, dtype, kSeed);
-      return;
-    }
-    const std::string weights_id = synthetic_weights_id(vae_parameter_shapes(cfg), dtype, kSeed);
-    path_ = (fs::path(root) / ("bench-vae-" + hex16(fnv1a(cfg.to_json().dump(), fnv1a(weights_id))))).string();
-    remove_abandoned_temporaries(path_);  // left by a killed bench
-    if (fs::exists(fs::path(path_) / "config.json")) return;
-    std::fprintf(stderr, "bench vae: writing a random %s VAE to %s\n", dtype_name(dtype), path_.c_str());
-    AtomicDir dir(path_, "config.json");  // the folder appears whole, or not at all
-    write_random_vae(dir.path(), cfg, dtype, kSeed);
-    if (!fs::exists(fs::path(path_) / "config.json")) dir.commit();  // else another bench finished first
-  }
-  ~VaeModelDir() {
-    std::error_code ec;
-    if (temporary_) fs::remove_all(path_, ec);
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-  bool temporary_ = false;
-};
+// bench-vae-<id> in the benchmarks' cache folder (cached_bench_folder; id: a hash of the config, the parameter list,
+// dtype, seed and the generator's values).
+std::string vae_model_dir(const VaeConfig& cfg, DType dtype) {
+  constexpr uint64_t kSeed = 1234;
+  const std::string weights_id = synthetic_weights_id(vae_parameter_shapes(cfg), dtype, kSeed);
+  const std::string name = "bench-vae-" + hex16(fnv1a(cfg.to_json().dump(), fnv1a(weights_id)));
+  return cached_bench_folder(name, "config.json", [&](const std::string& tmp) {
+    std::fprintf(stderr, "bench vae: writing a random %s VAE (%s)\n", dtype_name(dtype), name.c_str());
+    write_random_vae(tmp, cfg, dtype, kSeed);
+  });
+}
 
 Tensor pattern(const Shape& s, float amp) {  // deterministic values in [-amp, amp]
   Tensor t(s);
@@ -110,8 +84,7 @@ int run_vae_bench(const Args& a, bool decode) {
   const std::string target = decode ? "vae_decode" : "vae_encode";
   const VaeBenchOptions o = read_options(a, target, decode);
   const VaeConfig cfg = VaeConfig::svd_xt();
-  const VaeModelDir dir(cfg, o.dtype);
-  TemporalVAE vae(dir.path());
+  TemporalVAE vae(vae_model_dir(cfg, o.dtype));
   const int64_t latent = o.size / cfg.spatial_factor();
 
   BenchReport r;

@@ -33,4 +33,17 @@ std::shared_ptr<const WeightMap> bench_synthetic_weights(const std::string& benc
   return weights;
 }
 
+std::string cached_bench_folder(const std::string& name, const std::string& marker,
+                                const std::function<void(const std::string& dir)>& fill) {
+  std::string root = cache_root();
+  if (root.empty()) root = (fs::temp_directory_path() / "egopd-cache").string();
+  const std::string dir = (fs::path(root) / name).string();
+  remove_abandoned_temporaries(dir);  // left by a killed bench (gigabytes at real size)
+  if (fs::exists(fs::path(dir) / marker)) return dir;
+  AtomicDir tmp(dir, marker);
+  fill(tmp.path());
+  if (!fs::exists(fs::path(dir) / marker)) tmp.commit();  // else another bench finished first: use its folder
+  return dir;
+}
+
 }  // namespace egopd

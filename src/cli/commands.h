@@ -40,6 +40,13 @@ std::shared_ptr<const WeightMap> bench_synthetic_weights(const std::string& benc
                                                          const std::vector<std::pair<std::string, Shape>>& params,
                                                          DType dtype);
 
+// The folder `name` in the benchmarks' cache folder (cache_root(), else <temp>/egopd-cache), built once and reused:
+// fill(dir) writes it into a temporary folder that appears whole under `name` (AtomicDir; `marker`, a file every
+// complete folder has, tells a finished one), or not at all on an error or interrupt. Temporaries a killed bench
+// left there go after an hour untouched.
+std::string cached_bench_folder(const std::string& name, const std::string& marker,
+                                const std::function<void(const std::string& dir)>& fill);
+
 // Shared reporting of every bench target: one JSON object (--json) or a short text block with at least
 // seconds (median per call), gflops, percent_of_peak and peak_rss_bytes.
 struct BenchReport {
