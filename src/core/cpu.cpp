@@ -71,6 +71,10 @@ CpuInfo detect() {
   ci.avx512 = ci.avx2_fma_f16c && os_avx512 && f && dq && bw && vl;
   ci.avx512_vnni = ci.avx512 && (l7.c & (1u << 11));
   ci.avx512_bf16 = ci.avx512 && (l7_1.a & (1u << 5));
+#if defined(EGOPD_EMULATE_AVX512)
+  // A test build: the avx512 path's instructions, BF16 and VNNI included, are portable code (kernels/avx512/isa.h).
+  ci.avx512 = ci.avx512_vnni = ci.avx512_bf16 = ci.avx2_fma_f16c;
+#endif
   if (max_ext >= 0x80000004u) {
     char brand[49] = {};
     for (unsigned i = 0; i < 3; ++i) {
@@ -257,7 +261,11 @@ const char* kernel_path_name(KernelPath p) {
 
 std::string kernel_path_features(KernelPath p) {
   switch (p) {
+#if defined(EGOPD_EMULATE_AVX512)
+    case KernelPath::Avx512: return "avx512f+bw+vl+dq emulated (SIMDe)";
+#else
     case KernelPath::Avx512: return "avx512f+bw+vl+dq";
+#endif
     case KernelPath::Avx2: return "avx2+fma+f16c";
     case KernelPath::Neon: {
       // The ARMv8.2 extensions are reported only: the kernels use the ARMv8.0-A instructions.

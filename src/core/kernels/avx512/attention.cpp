@@ -6,8 +6,7 @@
 //  * P·V in 6-query x 64-channel micro-tiles (24 accumulators), the last channel vector masked.
 #include <cstdint>
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-#include <immintrin.h>
+#include "core/kernels/avx512/isa.h"
 
 #include "core/kernels/attention.h"
 #include "core/kernels/attention_tile.h"
@@ -223,8 +222,8 @@ inline void key_pairs_in_place(float* st, int64_t nk, int64_t ncol) {
 // the accumulators in registers, and the assembly form made it spill them. The only function that needs
 // AVX512-BF16 (a call of its own from the rest, which runs on CPUs without it too).
 template <int R, int NC, bool kLoadC>
-__attribute__((target("avx512bf16"))) void dp_tile(const uint32_t* a, int64_t a_rs, int64_t a_js, const uint32_t* b,
-                                                   int64_t b_ld, int64_t n, float* c, int64_t c_ld) {
+EGOPD_TARGET_BF16 void dp_tile(const uint32_t* a, int64_t a_rs, int64_t a_js, const uint32_t* b, int64_t b_ld,
+                               int64_t n, float* c, int64_t c_ld) {
   __m512 acc[R][NC];
 #pragma GCC unroll 12
   for (int r = 0; r < R; ++r)

@@ -12,8 +12,7 @@
 #include "core/memory.h"
 #include "core/threading.h"
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-#include <immintrin.h>
+#include "core/kernels/avx512/isa.h"
 
 #include "core/kernels/avx512/tile.h"
 

@@ -7,8 +7,7 @@
 
 #include "core/kernels/gemm_internal.h"
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-#include <immintrin.h>
+#include "core/kernels/avx512/isa.h"
 
 #include "core/kernels/temporal_wino_pack.h"
 
@@ -90,11 +89,17 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
 // row two B loads and twelve A broadcasts feed 24 instructions EGOPD_DOT_INSN (defined at each use) into
 // c<i>0, c<i>1. The instructions are inline assembly: with their intrinsics GCC 12 copies each accumulator before
 // the instruction (its destination is also its input) and spills the tile to the stack (vpdpbusd: 3.6x slower).
+// The emulated build (isa.h) has no such instructions: there, the intrinsic EGOPD_DOT_INTRINSIC instead.
+#if defined(EGOPD_EMULATE_AVX512)
+#define EGOPD_DOT_ONE(acc, x, y) acc = EGOPD_DOT_INTRINSIC(acc, x, y)
+#else
+#define EGOPD_DOT_ONE(acc, x, y) asm(EGOPD_DOT_INSN " %[b], %[a], %[c]" : [c] "+v"(acc) : [a] "v"(x), [b] "v"(y))
+#endif
 #define EGOPD_DOT(i)                                                                     \
   {                                                                                      \
     const __m512i av = _mm512_set1_epi32(int(a[(i)]));                                   \
-    asm(EGOPD_DOT_INSN " %[b], %[a], %[c]" : [c] "+v"(c##i##0) : [a] "v"(av), [b] "v"(b0)); \
-    asm(EGOPD_DOT_INSN " %[b], %[a], %[c]" : [c] "+v"(c##i##1) : [a] "v"(av), [b] "v"(b1)); \
+    EGOPD_DOT_ONE(c##i##0, av, b0);                                                      \
+    EGOPD_DOT_ONE(c##i##1, av, b1);                                                      \
   }
 #define EGOPD_SLOT_LOOP(n)                                                               \
   for (int64_t p = 0, rows_ = (n); p < rows_; ++p) {                                     \
@@ -106,14 +111,14 @@ void microkernel_avx512(int64_t kc, const float* a, int64_t a_rs, int64_t a_cs, 
     b += NR;                                                                             \
   }
 #define EGOPD_DOT_INSN "vdpbf16ps"
+#define EGOPD_DOT_INTRINSIC(c, a, b) _mm512_dpbf16_ps(c, (__m512bh)(a), (__m512bh)(b))
 #define EGOPD_STORE(i)                   \
   _mm512_store_ps(sum + (i) * NR, c##i##0); \
   _mm512_store_ps(sum + (i) * NR + 16, c##i##1);
 
-__attribute__((target("avx512bf16"))) void microkernel_avx512_bf16(int64_t kc, const float* a_panel, int64_t,
-                                                                   int64_t, const float* b_panel, float* c,
-                                                                   int64_t ldc, int mr, int nr,
-                                                                   const TileEpilogue& ep) {
+EGOPD_TARGET_BF16 void microkernel_avx512_bf16(int64_t kc, const float* a_panel, int64_t, int64_t,
+                                               const float* b_panel, float* c, int64_t ldc, int mr, int nr,
+                                               const TileEpilogue& ep) {
   prefetch_c(c, ldc, mr);
   const uint32_t* a = reinterpret_cast<const uint32_t*>(a_panel);
   const uint32_t* b = reinterpret_cast<const uint32_t*>(b_panel);
@@ -125,9 +130,10 @@ __attribute__((target("avx512bf16"))) void microkernel_avx512_bf16(int64_t kc, c
 }
 
 #undef EGOPD_DOT_INSN
+#undef EGOPD_DOT_INTRINSIC
 #undef EGOPD_STORE
 
-__attribute__((target("avx512bf16"))) void to_bf16_pairs_avx512(float* panel, int width, int64_t kc) {
+EGOPD_TARGET_BF16 void to_bf16_pairs_avx512(float* panel, int width, int64_t kc) {
   // In place: pair p is written over float rows <= p, all of them read before (row 0 by this very step, whose
   // chunks are each loaded before they are overwritten).
   uint32_t* out = reinterpret_cast<uint32_t*>(panel);
@@ -212,6 +218,7 @@ void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t 
 
 #define EGOPD_DECLARE_INT(i) __m512i c##i##0 = _mm512_setzero_si512(), c##i##1 = _mm512_setzero_si512();
 #define EGOPD_DOT_INSN "vpdpbusd"
+#define EGOPD_DOT_INTRINSIC(c, a, b) _mm512_dpbusd_epi32(c, a, b)
 // sum = fma(float(int32 sum - correction), s_row * s_col, sum), as on every path (gemm_i8.cpp).
 #define EGOPD_SCALE(i)                                                                                     \
   {                                                                                                        \
@@ -224,10 +231,9 @@ void quantize_i8_b_avx512_vnni(const float* src, float* dst, int width, int64_t 
                                                          _mm512_mul_ps(sa, sb1), old1));                   \
   }
 
-__attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, const float* a_panel, int64_t,
-                                                                   int64_t, const float* b_panel, float* c,
-                                                                   int64_t ldc, int mr, int nr,
-                                                                   const TileEpilogue& ep) {
+EGOPD_TARGET_VNNI void microkernel_avx512_vnni(int64_t kc, const float* a_panel, int64_t, int64_t,
+                                               const float* b_panel, float* c, int64_t ldc, int mr, int nr,
+                                               const TileEpilogue& ep) {
   prefetch_c(c, ldc, mr);
   // Float sums of the groups (gemm_internal.h: I8Group) in `sum`, the int32 ones of a group in registers.
   alignas(64) float sum[MR * NR];
@@ -248,6 +254,7 @@ __attribute__((target("avx512vnni"))) void microkernel_avx512_vnni(int64_t kc, c
 
 #undef EGOPD_SCALE
 #undef EGOPD_DOT_INSN
+#undef EGOPD_DOT_INTRINSIC
 #undef EGOPD_DECLARE_INT
 #undef EGOPD_SLOT_LOOP
 #undef EGOPD_DOT
@@ -375,17 +382,16 @@ void pack_a_avx512(const void* p, DType dt, int64_t ld, bool trans, const float*
 namespace {
 
 // Pairs (lo_j, hi_j) of two 16-lane vectors as 16 32-bit slots.
-__attribute__((target("avx512bf16"), always_inline)) inline __m512i bf16_pairs16(__m512 lo, __m512 hi) {
+EGOPD_TARGET_BF16 __attribute__((always_inline)) inline __m512i bf16_pairs16(__m512 lo, __m512 hi) {
   const __m512i interleave = _mm512_set_epi16(31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7, 22,
                                               6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1, 16, 0);
   return _mm512_permutexvar_epi16(interleave, (__m512i)_mm512_cvtne2ps_pbh(hi, lo));
 }
 
 template <int W, DType dt>
-__attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_contiguous(const void* p, int64_t ld,
-                                                                                      const float* scale,
-                                                                                      int64_t kc, int n,
-                                                                                      uint32_t* dst) {
+EGOPD_TARGET_BF16 __attribute__((always_inline)) inline void pack_bf16_contiguous(const void* p, int64_t ld,
+                                                                                  const float* scale, int64_t kc,
+                                                                                  int n, uint32_t* dst) {
   constexpr int kChunks = (W + 15) / 16;
   const int64_t es = elem_size(dt);
   __mmask16 in[kChunks];
@@ -408,9 +414,9 @@ __attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_conti
 
 // Each lane its own row: 16 k of a lane become its 8 slots, and 8 lanes' slots are transposed 8 x 8.
 template <int W, DType dt>
-__attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_strided(const void* p, int64_t ld,
-                                                                                   const float* scale, int64_t kc,
-                                                                                   int n, uint32_t* dst) {
+EGOPD_TARGET_BF16 __attribute__((always_inline)) inline void pack_bf16_strided(const void* p, int64_t ld,
+                                                                               const float* scale, int64_t kc, int n,
+                                                                               uint32_t* dst) {
   const int64_t es = elem_size(dt);
   const char* base = static_cast<const char*>(p);
   for (int64_t k = 0; k < kc; k += 16) {
@@ -440,8 +446,8 @@ __attribute__((target("avx512bf16"), always_inline)) inline void pack_bf16_strid
 }
 
 template <int W, DType dt>
-__attribute__((target("avx512bf16"))) void pack_bf16(const void* p, int64_t ld, bool contiguous, const float* scale,
-                                                     int64_t kc, int n, float* dst) {
+EGOPD_TARGET_BF16 void pack_bf16(const void* p, int64_t ld, bool contiguous, const float* scale, int64_t kc, int n,
+                                 float* dst) {
   uint32_t* out = reinterpret_cast<uint32_t*>(dst);
   if (contiguous) pack_bf16_contiguous<W, dt>(p, ld, scale, kc, n, out);
   else pack_bf16_strided<W, dt>(p, ld, scale, kc, n, out);

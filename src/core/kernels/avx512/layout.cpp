@@ -3,8 +3,7 @@
 // U-Net's [16, 320, 1024] (AMD EPYC, Zen 5 class), where the 16x16 kernel wins 1.8x when adding onto a residual.
 #include <cstdint>
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-#include <immintrin.h>
+#include "core/kernels/avx512/isa.h"
 
 namespace egopd {
 namespace avx2 {

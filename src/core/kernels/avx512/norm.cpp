@@ -3,8 +3,7 @@
 // Only reached through the avx512 kernel path.
 #include <cstdint>
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
-#include <immintrin.h>
+#include "core/kernels/avx512/isa.h"
 
 #include "core/kernels/avx512/vec_math.h"
 

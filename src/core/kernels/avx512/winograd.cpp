@@ -3,7 +3,7 @@
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd_internal.h"
 
-#pragma GCC target("avx512f,avx512bw,avx512vl,avx512dq,avx2,fma,f16c")
+#include "core/kernels/avx512/isa.h"
 #include "core/kernels/winograd_transforms.h"
 
 namespace egopd::wino_detail {
