@@ -2,8 +2,9 @@
 # The test command: install what is missing, build (Release), run every unit and golden test; install the build into
 # a temporary prefix and build and run the C example and the Python module's tests against it
 # (tests/install/install_test.sh); then build the tests again with AddressSanitizer + UndefinedBehaviorSanitizer in
-# build-asan/ and run them there too; then fuzz every parser for a bounded time (scripts/fuzz.sh) and run a Slurm job
-# array on a one-node local cluster (tests/slurm/slurm_test.sh); last, cross-build for AArch64 and run the kernel,
+# build-asan/ (on a CPU without AVX-512, with the avx512 path emulated) and run them there too; then fuzz every
+# parser for a bounded time (scripts/fuzz.sh) and run a Slurm job array on a one-node local cluster
+# (tests/slurm/slurm_test.sh); last, cross-build for AArch64 and run the kernel,
 # model-component and golden tests under qemu-aarch64 on the neon and portable paths (scripts/test-arm64.sh --quick).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,8 +21,18 @@ echo "== install: the C example against an installed prefix (pkg-config, find_pa
 tests/install/install_test.sh build build/install_test_work
 
 echo "== sanitizer build (ASan + UBSan) =="
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF >/dev/null
+# On a CPU without AVX-512 this build emulates the avx512 path (SIMDe; README, "Commands"), so that its code, BF16
+# and VNNI micro-kernels included, runs under every kernel and golden test (they run every available path) on every
+# machine, and under the sanitizers; where the CPU has AVX-512 the native path runs here instead.
+emulate_avx512=OFF
+if ! grep -qw avx512f /proc/cpuinfo; then
+  ./scripts/install-packages.sh libsimde-dev
+  emulate_avx512=ON
+fi
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF \
+  -DEGOPD_EMULATE_AVX512=$emulate_avx512 >/dev/null
 cmake --build build-asan -j"$jobs"
+if [ $emulate_avx512 = ON ]; then EGOPD_KERNELS=avx512 build-asan/bin/egopd --version; fi
 # Not under the sanitizers: the Winograd accuracy test on the real layer shapes (pure arithmetic on large buffers, 166 s
 # there and the run's long pole; its small-shape siblings run under them, and it runs in the Release pass above).
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
