@@ -3,9 +3,9 @@
 // SIMDe's implementations (its native aliases map _mm512_* to them), and below, in SIMDe's style, the ones the
 // Debian SIMDe (0.7.4) lacks. They follow the instruction set reference's definitions (masked loads read only
 // the selected elements; float -> bfloat16 rounds to nearest even, makes NaNs quiet and flushes denormal inputs to
-// zero; float -> int32 out of range gives 0x80000000). Such a build runs the avx512 path, much more slowly, on any
-// AVX2 CPU; it is a test build: the files are compiled for AVX2 + FMA + F16C and the pragmas of the native build
-// are left out. Include ONLY through avx512/isa.h.
+// zero; float -> int32 out of range gives 0x80000000). Such a build runs the avx512 path on any AVX2 CPU; it is a
+// test build (it checks numbers, not speed): the files are compiled for AVX2 + FMA + F16C and the pragmas of the
+// native build are left out. Include ONLY through avx512/isa.h.
 #include <immintrin.h>
 
 #include <algorithm>
@@ -40,14 +40,20 @@ inline R map_lanes(const V& v, F f) {
   return from_lanes<R>(out);
 }
 
-template <class T, int N>
-inline void masked_load(T* out, uint64_t k, const void* p) {
-  for (int i = 0; i < N; ++i) out[i] = (k >> i) & 1 ? static_cast<const T*>(p)[i] : T(0);
+// The register R of N lanes of T: p[i] where mask bit i is set (only those are read), else 0.
+template <class R, class T, int N>
+inline R masked_load(uint64_t k, const void* p) {
+  T v[N];
+  for (int i = 0; i < N; ++i) v[i] = (k >> i) & 1 ? static_cast<const T*>(p)[i] : T(0);
+  return from_lanes<R>(v);
 }
-template <class T, int N>
-inline void masked_store(void* p, uint64_t k, const T* in) {
+// p[i] = lane i of the register a where mask bit i is set (only those are written).
+template <class T, int N, class V>
+inline void masked_store(void* p, uint64_t k, const V& a) {
+  T v[N];
+  lanes_of(a, v);
   for (int i = 0; i < N; ++i)
-    if ((k >> i) & 1) static_cast<T*>(p)[i] = in[i];
+    if ((k >> i) & 1) static_cast<T*>(p)[i] = v[i];
 }
 
 inline uint16_t to_bf16(float x) {
@@ -58,42 +64,8 @@ inline uint16_t to_bf16(float x) {
   return uint16_t((u + 0x7fffu + ((u >> 16) & 1u)) >> 16);
 }
 
-inline simde__m512 maskz_loadu_ps(simde__mmask16 k, const void* p) {
-  float v[16];
-  masked_load<float, 16>(v, k, p);
-  return from_lanes<simde__m512>(v);
-}
 inline simde__m512 mask_loadu_ps(simde__m512 src, simde__mmask16 k, const void* p) {
-  float v[16], s[16];
-  lanes_of(src, s);
-  masked_load<float, 16>(v, k, p);
-  for (int i = 0; i < 16; ++i) v[i] = (k >> i) & 1 ? v[i] : s[i];
-  return from_lanes<simde__m512>(v);
-}
-inline void mask_storeu_ps(void* p, simde__mmask16 k, simde__m512 a) {
-  float v[16];
-  lanes_of(a, v);
-  masked_store<float, 16>(p, k, v);
-}
-inline void mask_storeu_epi32(void* p, simde__mmask16 k, simde__m512i a) {
-  int32_t v[16];
-  lanes_of(a, v);
-  masked_store<int32_t, 16>(p, k, v);
-}
-inline void mask_storeu_ps_256(void* p, simde__mmask8 k, __m256 a) {
-  float v[8];
-  lanes_of(a, v);
-  masked_store<float, 8>(p, k, v);
-}
-inline __m128i maskz_loadu_epi8_128(simde__mmask16 k, const void* p) {
-  int8_t v[16];
-  masked_load<int8_t, 16>(v, k, p);
-  return from_lanes<__m128i>(v);
-}
-inline __m256i maskz_loadu_epi16_256(simde__mmask16 k, const void* p) {
-  int16_t v[16];
-  masked_load<int16_t, 16>(v, k, p);
-  return from_lanes<__m256i>(v);
+  return simde_mm512_mask_mov_ps(src, k, masked_load<simde__m512, float, 16>(k, p));
 }
 inline __m256 extractf32x8_ps(simde__m512 a, int imm8) {
   float v[16];
@@ -173,13 +145,13 @@ inline simde__m512bh cvtne2ps_pbh(simde__m512 a, simde__m512 b) {  // b's lanes 
 
 }  // namespace egopd::avx512_emulated
 
-#define _mm512_maskz_loadu_ps(k, p) egopd::avx512_emulated::maskz_loadu_ps(k, p)
+#define _mm512_maskz_loadu_ps(k, p) egopd::avx512_emulated::masked_load<simde__m512, float, 16>(k, p)
 #define _mm512_mask_loadu_ps(s, k, p) egopd::avx512_emulated::mask_loadu_ps(s, k, p)
-#define _mm512_mask_storeu_ps(p, k, a) egopd::avx512_emulated::mask_storeu_ps(p, k, a)
-#define _mm512_mask_storeu_epi32(p, k, a) egopd::avx512_emulated::mask_storeu_epi32(p, k, a)
-#define _mm256_mask_storeu_ps(p, k, a) egopd::avx512_emulated::mask_storeu_ps_256(p, k, a)
-#define _mm_maskz_loadu_epi8(k, p) egopd::avx512_emulated::maskz_loadu_epi8_128(k, p)
-#define _mm256_maskz_loadu_epi16(k, p) egopd::avx512_emulated::maskz_loadu_epi16_256(k, p)
+#define _mm_maskz_loadu_epi8(k, p) egopd::avx512_emulated::masked_load<__m128i, int8_t, 16>(k, p)
+#define _mm256_maskz_loadu_epi16(k, p) egopd::avx512_emulated::masked_load<__m256i, int16_t, 16>(k, p)
+#define _mm512_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float, 16>(p, k, a)
+#define _mm512_mask_storeu_epi32(p, k, a) egopd::avx512_emulated::masked_store<int32_t, 16>(p, k, a)
+#define _mm256_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float, 8>(p, k, a)
 #define _mm512_shuffle_f32x4(a, b, imm8) simde_mm512_shuffle_f32x4(a, b, imm8)
 #define _mm512_extractf32x8_ps(a, imm8) egopd::avx512_emulated::extractf32x8_ps(a, imm8)
 #define _mm512_cvtepu16_epi32(a) egopd::avx512_emulated::cvtepu16_epi32(a)
