@@ -1,12 +1,22 @@
 #include "core/config.h"
 
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <fstream>
 #include <sstream>
 
 #include "core/error.h"
 
 namespace egopd {
+
+Config::Config() : j_(std::make_shared<const nlohmann::json>(nlohmann::json::object())) {}
+
+Config::Config(nlohmann::json j, std::string source)
+    : j_(std::make_shared<const nlohmann::json>(std::move(j))), source_(std::move(source)) {}
+
+bool Config::has(const std::string& key) const {
+  return j_->is_object() && j_->contains(key) && !(*j_)[key].is_null();
+}
 
 Config Config::load(const std::string& path) {
   std::ifstream in(path);
@@ -27,7 +37,7 @@ void Config::fail(const std::string& key, const std::string& why) const {
 
 const nlohmann::json& Config::at(const std::string& key) const {
   if (!has(key)) fail(key, "missing");
-  return j_[key];
+  return (*j_)[key];
 }
 
 int64_t Config::get_int(const std::string& key) const {
@@ -56,7 +66,7 @@ double Config::get_double(const std::string& key, double fallback) const {
 
 bool Config::get_bool(const std::string& key, bool fallback) const {
   if (!has(key)) return fallback;
-  const auto& v = j_[key];
+  const auto& v = (*j_)[key];
   if (!v.is_boolean()) fail(key, "expected true or false, got " + v.dump());
   return v.get<bool>();
 }

@@ -1,7 +1,8 @@
 #pragma once
 // config.json access with field-naming errors ("unet/config.json: field 'block_out_channels': ...").
 // diffusers / transformers configs give per-block values either as a list or as one scalar for every block.
-#include <nlohmann/json.hpp>
+#include <memory>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 
@@ -26,11 +27,11 @@ constexpr RealRange kGuidanceRange{0, 100};
 
 class Config {
  public:
-  Config() = default;
-  Config(nlohmann::json j, std::string source) : j_(std::move(j)), source_(std::move(source)) {}
+  Config();  // an empty object
+  Config(nlohmann::json j, std::string source);
   static Config load(const std::string& path);
 
-  bool has(const std::string& key) const { return j_.is_object() && j_.contains(key) && !j_[key].is_null(); }
+  bool has(const std::string& key) const;
   int64_t get_int(const std::string& key) const;
   int64_t get_int(const std::string& key, int64_t fallback) const;
   double get_double(const std::string& key) const;
@@ -52,13 +53,15 @@ class Config {
   std::vector<int64_t> get_int_per_block(const std::string& key, size_t n, IntRange r) const;
   Config sub(const std::string& key) const;  // nested object (error if missing)
 
-  const nlohmann::json& json() const { return j_; }
+  const nlohmann::json& json() const { return *j_; }
   const std::string& source() const { return source_; }
   [[noreturn]] void fail(const std::string& key, const std::string& why) const;
 
  private:
   const nlohmann::json& at(const std::string& key) const;
-  nlohmann::json j_ = nlohmann::json::object();
+  // Never null. Shared between copies (a Config is read-only), and behind a pointer so that this header needs only
+  // json_fwd.hpp: the full JSON header costs every translation unit that includes it about 3 s of compile time.
+  std::shared_ptr<const nlohmann::json> j_;
   std::string source_;
 };
 

@@ -4,7 +4,7 @@
 // list of a component (recorded from the model class built from its config), and write_synthetic_model(), which
 // writes a complete EgoPressureDiff model directory with deterministic random weights.
 #include <cstdint>
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <utility>
 #include <vector>

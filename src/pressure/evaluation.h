@@ -1,7 +1,7 @@
 #pragma once
 // Split evaluation behind `egopd evaluate`: taxel CSVs (Newtons) of one clip or of a directory of clips are
 // converted to the metric domain and pooled (pressure.md §8).
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 

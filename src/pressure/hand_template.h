@@ -3,7 +3,7 @@
 // the hand outline. The taxel vector index is the sensor id. Loaded from a JSON file; every load error is one line
 // naming the file and the field.
 #include <array>
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 

@@ -1,6 +1,7 @@
 // Golden-case runners: `rng` (torch-compatible draws) and the sampler trajectories `scheduler_euler` /
 // `scheduler_lcm` (schedule + a loop driven by given model outputs and re-noising noise).
 #include <algorithm>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 

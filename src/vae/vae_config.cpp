@@ -1,5 +1,7 @@
 #include "vae/vae_config.h"
 
+#include <nlohmann/json.hpp>
+
 #include "core/error.h"
 
 namespace egopd {

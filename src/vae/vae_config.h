@@ -1,7 +1,7 @@
 #pragma once
 // AutoencoderKLTemporalDecoder configuration (vae.md §1), its parameter tree (vae.md §6) and work counts.
 #include <cstdint>
-#include <nlohmann/json.hpp>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <utility>
 #include <vector>

@@ -1,6 +1,7 @@
 #include "vae/vae_random.h"
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 
 #include "core/atomic_file.h"
 #include "core/safetensors.h"

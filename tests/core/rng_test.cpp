@@ -3,6 +3,7 @@
 #include "core/rng.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstring>

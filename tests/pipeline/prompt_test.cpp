@@ -1,5 +1,6 @@
 // Prompt building (egopressurediff.md §3.2-§3.3): field formatting and clause dropping.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "pipeline/prompt.h"

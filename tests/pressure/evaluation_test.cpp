@@ -1,5 +1,6 @@
 // The evaluation behind `egopd evaluate`: GT conversion, prediction conversion, file/directory matching, pooling.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>

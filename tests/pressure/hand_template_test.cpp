@@ -1,5 +1,6 @@
 // Template loading: the shipped synthetic default and one-line errors naming file and field.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include <cstdlib>

@@ -3,6 +3,7 @@
 #include "scheduler/sampler.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>

@@ -3,6 +3,7 @@
 // The tensors are read flat here (the trajectories are rank 6); the runner itself is checked below through
 // load_golden_case when the core tensor supports that rank.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <map>

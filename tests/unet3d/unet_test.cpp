@@ -1,5 +1,6 @@
 // U-Net: golden cases through the model directly (independent of the other components), load-time checks,
 // and the PIFR zero-initialisation identity.
+#include <cmath>
 #include <gtest/gtest.h>
 
 #include <filesystem>

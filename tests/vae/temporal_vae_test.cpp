@@ -1,5 +1,6 @@
 // TemporalVAE as a whole: parameter tree and strict loading, golden cases, chunked decoding (vae.md §5.2), scaling.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
