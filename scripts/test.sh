@@ -23,12 +23,13 @@ tests/install/install_test.sh build build/install_test_work
 echo "== sanitizer build (ASan + UBSan) =="
 # On a CPU without AVX-512 this build emulates the avx512 path (SIMDe; README, "Commands"), so that its code, BF16
 # and VNNI micro-kernels included, runs under every kernel and golden test (they run every available path) on every
-# machine, and under the sanitizers; where the CPU has AVX-512 the native path runs here instead.
-emulate_avx512=OFF
-if ! grep -qw avx512f /proc/cpuinfo; then
-  ./scripts/install-packages.sh libsimde-dev
-  emulate_avx512=ON
-fi
+# machine, and under the sanitizers; where the CPU has AVX-512 the native path runs here instead. egopd's own CPU check
+# decides (AVX-512 F, BW, VL and DQ, enabled by the OS), not one flag of /proc/cpuinfo.
+emulate_avx512=ON
+case "$(env -u EGOPD_KERNELS build/bin/egopd --version)" in
+  *"kernels: avx512"*) emulate_avx512=OFF ;;
+esac
+if [ $emulate_avx512 = ON ]; then ./scripts/install-packages.sh libsimde-dev; fi
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF \
   -DEGOPD_EMULATE_AVX512=$emulate_avx512 >/dev/null
 cmake --build build-asan -j"$jobs"
