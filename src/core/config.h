@@ -60,7 +60,7 @@ class Config {
  private:
   const nlohmann::json& at(const std::string& key) const;
   // Never null. Shared between copies (a Config is read-only), and behind a pointer so that this header needs only
-  // json_fwd.hpp (parsing the full JSON header takes about 3 s per translation unit where no precompiled header holds it).
+  // json_fwd.hpp (the full JSON header takes about 3 s to parse where no precompiled header holds it).
   std::shared_ptr<const nlohmann::json> j_;
   std::string source_;
 };
