@@ -40,16 +40,18 @@ inline R map_lanes(const V& v, F f) {
   return from_lanes<R>(out);
 }
 
-// The register R of N lanes of T: p[i] where mask bit i is set (only those are read), else 0.
-template <class R, class T, int N>
+// The register R of lanes of T: p[i] where mask bit i is set (only those are read), else 0.
+template <class R, class T>
 inline R masked_load(uint64_t k, const void* p) {
+  constexpr int N = sizeof(R) / sizeof(T);
   T v[N];
   for (int i = 0; i < N; ++i) v[i] = (k >> i) & 1 ? static_cast<const T*>(p)[i] : T(0);
   return from_lanes<R>(v);
 }
-// p[i] = lane i of the register a where mask bit i is set (only those are written).
-template <class T, int N, class V>
+// p[i] = lane i (of T) of the register a where mask bit i is set (only those are written).
+template <class T, class V>
 inline void masked_store(void* p, uint64_t k, const V& a) {
+  constexpr int N = sizeof(V) / sizeof(T);
   T v[N];
   lanes_of(a, v);
   for (int i = 0; i < N; ++i)
@@ -65,7 +67,7 @@ inline uint16_t to_bf16(float x) {
 }
 
 inline simde__m512 mask_loadu_ps(simde__m512 src, simde__mmask16 k, const void* p) {
-  return simde_mm512_mask_mov_ps(src, k, masked_load<simde__m512, float, 16>(k, p));
+  return simde_mm512_mask_mov_ps(src, k, masked_load<simde__m512, float>(k, p));
 }
 inline __m256 extractf32x8_ps(simde__m512 a, int imm8) {
   float v[16];
@@ -145,13 +147,13 @@ inline simde__m512bh cvtne2ps_pbh(simde__m512 a, simde__m512 b) {  // b's lanes 
 
 }  // namespace egopd::avx512_emulated
 
-#define _mm512_maskz_loadu_ps(k, p) egopd::avx512_emulated::masked_load<simde__m512, float, 16>(k, p)
+#define _mm512_maskz_loadu_ps(k, p) egopd::avx512_emulated::masked_load<simde__m512, float>(k, p)
 #define _mm512_mask_loadu_ps(s, k, p) egopd::avx512_emulated::mask_loadu_ps(s, k, p)
-#define _mm_maskz_loadu_epi8(k, p) egopd::avx512_emulated::masked_load<__m128i, int8_t, 16>(k, p)
-#define _mm256_maskz_loadu_epi16(k, p) egopd::avx512_emulated::masked_load<__m256i, int16_t, 16>(k, p)
-#define _mm512_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float, 16>(p, k, a)
-#define _mm512_mask_storeu_epi32(p, k, a) egopd::avx512_emulated::masked_store<int32_t, 16>(p, k, a)
-#define _mm256_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float, 8>(p, k, a)
+#define _mm_maskz_loadu_epi8(k, p) egopd::avx512_emulated::masked_load<__m128i, int8_t>(k, p)
+#define _mm256_maskz_loadu_epi16(k, p) egopd::avx512_emulated::masked_load<__m256i, int16_t>(k, p)
+#define _mm512_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float>(p, k, a)
+#define _mm512_mask_storeu_epi32(p, k, a) egopd::avx512_emulated::masked_store<int32_t>(p, k, a)
+#define _mm256_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float>(p, k, a)
 #define _mm512_shuffle_f32x4(a, b, imm8) simde_mm512_shuffle_f32x4(a, b, imm8)
 #define _mm512_extractf32x8_ps(a, imm8) egopd::avx512_emulated::extractf32x8_ps(a, imm8)
 #define _mm512_cvtepu16_epi32(a) egopd::avx512_emulated::cvtepu16_epi32(a)
