@@ -4,8 +4,7 @@
 #include <cstring>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "core/json_text.h"
 #include "pipeline/prompt.h"
 
 namespace egopd::api {
@@ -150,7 +149,7 @@ ClipSource call_clip_source(const egopd_predict_options& o, const PredictOptions
   if (o.meta_json) {
     nlohmann::json j;
     try {
-      j = nlohmann::json::parse(o.meta_json);
+      j = parse_json(o.meta_json);
     } catch (const std::exception&) {
       throw ArgumentError("meta_json: metadata is not valid JSON");
     }

@@ -4,9 +4,8 @@
 #include <fstream>
 #include <set>
 
-#include <nlohmann/json.hpp>
-
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pipeline/prompt.h"
 
 namespace egopd {
@@ -57,7 +56,7 @@ std::vector<std::string> split_field(const json& j, const std::string& where) {
 ManifestClip parse_clip(const std::string& text, const std::string& where, const fs::path& base) {
   json j;
   try {
-    j = json::parse(text);
+    j = parse_json(text);
   } catch (const json::exception&) {
     throw Error(where + ": not a valid JSON object");
   }
@@ -121,7 +120,7 @@ std::string manifest_line(const ManifestClip& c) {
   if (!c.gt.empty()) j["gt"] = c.gt;
   if (c.splits.size() == 1) j["split"] = c.splits[0];
   if (c.splits.size() > 1) j["split"] = c.splits;
-  return j.dump();
+  return dump_json(j);
 }
 
 }  // namespace egopd

@@ -18,11 +18,10 @@
 #include <map>
 #include <set>
 
-#include <nlohmann/json.hpp>
-
 #include "batch/manifest.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pipeline/media.h"
 #include "pipeline/prompt.h"
 
@@ -77,7 +76,7 @@ Attributes load_attributes(const std::string& path) {
   if (!in) throw Error(path + ": cannot open attribute file");
   json j;
   try {
-    j = json::parse(in);
+    j = parse_json(in);
   } catch (const json::exception&) {
     throw Error(path + ": attribute file is not valid JSON");
   }

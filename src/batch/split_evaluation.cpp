@@ -6,12 +6,12 @@
 #include <fstream>
 #include <map>
 #include <memory>
-#include <nlohmann/json.hpp>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pipeline/media.h"
 #include "pressure/normalization.h"
 #include "pressure/renderer.h"
@@ -34,7 +34,7 @@ PredictionInfo read_summary(const std::string& path) {
   if (!in) throw Error(path + ": cannot open (is the prediction folder complete?)");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = parse_json(in);
     PredictionInfo info;
     info.size = j.at("size").get<int>();
     info.template_name = j.at("template").at("name").get<std::string>();

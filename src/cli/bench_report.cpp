@@ -6,6 +6,7 @@
 
 #include "cli/commands.h"
 #include "core/cpu.h"
+#include "core/json_text.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/fma_peak.h"
 #include "core/kernels/gemm.h"
@@ -87,9 +88,9 @@ void print_bench_report(const BenchReport& r, bool json) {
   j["version"] = EGOPD_VERSION;
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();
   if (json) {
-    std::printf("%s\n", j.dump().c_str());
+    std::printf("%s\n", dump_json(j).c_str());
   } else {
-    std::printf("%s\n", j.dump(2).c_str());
+    std::printf("%s\n", dump_json(j, 2).c_str());
   }
 }
 

@@ -11,6 +11,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/hash.h"
+#include "core/json_text.h"
 #include "core/kernels/kernel_profile.h"
 #include "core/memory.h"
 #include "core/synthetic_weights.h"
@@ -54,7 +55,7 @@ VaeBenchOptions read_options(const Args& a, const std::string& target, bool deco
 std::string vae_model_dir(const VaeConfig& cfg, DType dtype) {
   constexpr uint64_t kSeed = 1234;
   const std::string weights_id = synthetic_weights_id(vae_parameter_shapes(cfg), dtype, kSeed);
-  const std::string name = "bench-vae-" + hex16(fnv1a(cfg.to_json().dump(), fnv1a(weights_id)));
+  const std::string name = "bench-vae-" + hex16(fnv1a(dump_json(cfg.to_json()), fnv1a(weights_id)));
   return cached_bench_folder(name, "config.json", [&](const std::string& tmp) {
     std::fprintf(stderr, "bench vae: writing a random %s VAE (%s)\n", dtype_name(dtype), name.c_str());
     write_random_vae(tmp, cfg, dtype, kSeed);
@@ -66,7 +67,6 @@ Tensor pattern(const Shape& s, float amp) {  // deterministic values in [-amp, a
   for (int64_t i = 0; i < t.numel(); ++i) t[i] = amp * (float((i * 7919) % 2001) / 1000.0f - 1.0f);
   return t;
 }
-
 
 void describe_output(const Tensor& y, BenchReport& r) {
   double sq = 0;

@@ -10,6 +10,7 @@
 #include "cli/commands.h"
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "pressure/evaluation.h"
 
@@ -45,7 +46,7 @@ int evaluate_manifest_run(const Args& a) {
   const ManifestEvaluation e = evaluate_manifest(m, pred, run, t, opt);
   const std::string md = manifest_evaluation_markdown(e, t);
   std::printf("%s", md.c_str());
-  if (!json_path.empty()) write_file_atomic(json_path, manifest_evaluation_json(e, t, opt).dump(2) + "\n");
+  if (!json_path.empty()) write_file_atomic(json_path, dump_json(manifest_evaluation_json(e, t, opt), 2) + "\n");
   if (!md_path.empty()) write_file_atomic(md_path, md);
   if (!csv_path.empty()) write_file_atomic(csv_path, manifest_evaluation_csv(e));
   if (!e.complete()) {
@@ -85,7 +86,7 @@ int cmd_evaluate(const Args& a) {
     for (const auto& c : r.clips) print_row(c.name, c.metrics);
   print_row(r.clips.size() > 1 ? "pooled (split)" : r.clips[0].name, r.pooled);
 
-  if (!json_path.empty()) write_file_atomic(json_path, evaluation_json(r, t, opt).dump(2) + "\n");
+  if (!json_path.empty()) write_file_atomic(json_path, dump_json(evaluation_json(r, t, opt), 2) + "\n");
   return 0;
 }
 

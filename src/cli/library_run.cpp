@@ -6,9 +6,8 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "cli/predict_options.h"
+#include "core/json_text.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
 #include "core/threading.h"
@@ -71,7 +70,7 @@ int run_with_library(const PredictOptions& o, const VarySpec* vary) {
   // checked and --meta is read here, once (its warnings printed once), and passed on as fields.
   check_predict_options(o);
   const ClipSource src = clip_source(o);
-  const std::string meta_json = src.meta ? nlohmann::json(*src.meta).dump() : "";
+  const std::string meta_json = src.meta ? dump_json(nlohmann::json(*src.meta)) : "";
   egopd_install_signal_handlers();
   egopd_load_options lo;
   egopd_load_options_init(&lo);

@@ -1,12 +1,12 @@
 // `egopd tokenize TEXT... [--tokenizer DIR]`: the CLIP BPE ids of each prompt (BOS, content, EOS, padding to 77).
 #include <cstdio>
-#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "cli/commands.h"
 #include "clip_text/clip_tokenizer.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pipeline/synthetic_model.h"
 
 namespace egopd {
@@ -37,7 +37,7 @@ int cmd_tokenize(const Args& a) {
       j["ids"] = t.ids;
       j["length"] = t.length;
       j["truncated"] = t.truncated;
-      std::printf("%s\n", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
+      std::printf("%s\n", dump_json(j, -1, true).c_str());
     } else {
       std::string line;
       for (size_t i = 0; i < t.ids.size(); ++i) line.append(i ? " " : "").append(std::to_string(t.ids[i]));

@@ -8,10 +8,10 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace egopd {
 namespace fs = std::filesystem;
@@ -116,7 +116,7 @@ nlohmann::json read_json(const fs::path& p) {
   std::ifstream in(p);
   if (!in) throw Error(p.string() + ": cannot open");
   try {
-    return nlohmann::json::parse(in);
+    return parse_json(in);
   } catch (const std::exception&) {
     throw Error(p.string() + ": not valid JSON");
   }

@@ -4,11 +4,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 
 #include "clip_text/clip_text.h"
 #include "convert/model_check.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/synthetic_weights.h"
 #include "pipeline/synthetic_model.h"
 
@@ -22,7 +22,7 @@ json read_json_file(const fs::path& p) {
   std::ifstream in(p);
   if (!in) throw Error(p.string() + ": cannot open");
   try {
-    return json::parse(in);
+    return parse_json(in);
   } catch (const std::exception&) {
     throw Error(p.string() + ": not valid JSON");
   }

@@ -4,12 +4,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <set>
 
 #include "core/atomic_file.h"
 #include "core/interrupt.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 
 namespace egopd {
@@ -41,7 +41,7 @@ std::set<std::string> index_shards(const fs::path& index) {
   std::ifstream in(index);
   if (!in) return out;
   try {
-    const json j = json::parse(in);
+    const json j = parse_json(in);
     for (const auto& [k, v] : j.at("weight_map").items())
       if (v.is_string() && v.get<std::string>().find('/') == std::string::npos) out.insert(v.get<std::string>());
   } catch (const std::exception&) {
@@ -107,7 +107,7 @@ std::vector<std::string> write_weights(const std::string& dir, const std::string
       for (const OutTensor* t : shards[i]) weight_map[t->name] = written.back();
     }
     const json j = {{"metadata", {{"total_size", total}}}, {"weight_map", weight_map}};
-    write_file_atomic(index.string(), j.dump(2) + "\n");
+    write_file_atomic(index.string(), dump_json(j, 2) + "\n");
     written.push_back(index.filename().string());
   }
   // Stale files of another layout: the runtime would pick a single file before an index, an index before a variant.
@@ -143,7 +143,7 @@ void check_unique_tensor_names(const std::string& path) {
     return true;
   };
   try {
-    const json parsed = json::parse(header, cb);
+    const json parsed = parse_json(header, cb);
     (void)parsed;
   } catch (const std::exception&) {
     return;  // SafeTensorsFile reports invalid JSON

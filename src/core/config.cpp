@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace egopd {
 
@@ -23,7 +23,7 @@ Config Config::load(const std::string& path) {
   if (!in) throw Error(path + ": cannot open");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = parse_json(in);
   } catch (const std::exception& e) {
     throw Error(path + ": not valid JSON");
   }
@@ -47,14 +47,14 @@ int64_t Config::get_int(const std::string& key) const {
     const double x = v.get<double>();
     if (std::isfinite(x) && x == std::floor(x) && x >= -9.2e18 && x <= 9.2e18) return int64_t(x);
   }
-  fail(key, "expected an integer, got " + v.dump());
+  fail(key, "expected an integer, got " + dump_json(v));
 }
 
 int64_t Config::get_int(const std::string& key, int64_t fallback) const { return has(key) ? get_int(key) : fallback; }
 
 double Config::get_double(const std::string& key) const {
   const auto& v = at(key);
-  if (!v.is_number()) fail(key, "expected a number, got " + v.dump());
+  if (!v.is_number()) fail(key, "expected a number, got " + dump_json(v));
   const double x = v.get<double>();
   if (!std::isfinite(x)) fail(key, "not a finite number");
   return x;
@@ -67,13 +67,13 @@ double Config::get_double(const std::string& key, double fallback) const {
 bool Config::get_bool(const std::string& key, bool fallback) const {
   if (!has(key)) return fallback;
   const auto& v = (*j_)[key];
-  if (!v.is_boolean()) fail(key, "expected true or false, got " + v.dump());
+  if (!v.is_boolean()) fail(key, "expected true or false, got " + dump_json(v));
   return v.get<bool>();
 }
 
 std::string Config::get_string(const std::string& key) const {
   const auto& v = at(key);
-  if (!v.is_string()) fail(key, "expected a string, got " + v.dump());
+  if (!v.is_string()) fail(key, "expected a string, got " + dump_json(v));
   return v.get<std::string>();
 }
 
@@ -86,7 +86,7 @@ std::vector<std::string> Config::get_string_list(const std::string& key) const {
   if (!v.is_array()) fail(key, "expected a list of strings");
   std::vector<std::string> out;
   for (const auto& e : v) {
-    if (!e.is_string()) fail(key, "expected a list of strings, found " + e.dump());
+    if (!e.is_string()) fail(key, "expected a list of strings, found " + dump_json(e));
     out.push_back(e.get<std::string>());
   }
   return out;
@@ -97,7 +97,7 @@ std::vector<double> Config::get_double_list(const std::string& key) const {
   if (!v.is_array()) fail(key, "expected a list of numbers");
   std::vector<double> out;
   for (const auto& e : v) {
-    if (!e.is_number()) fail(key, "expected a list of numbers, found " + e.dump());
+    if (!e.is_number()) fail(key, "expected a list of numbers, found " + dump_json(e));
     out.push_back(e.get<double>());
   }
   return out;
@@ -108,7 +108,7 @@ std::vector<int64_t> Config::get_int_list(const std::string& key) const {
   if (!v.is_array()) fail(key, "expected a list of integers");
   std::vector<int64_t> out;
   for (const auto& e : v) {
-    if (!e.is_number_integer()) fail(key, "expected a list of integers, found " + e.dump());
+    if (!e.is_number_integer()) fail(key, "expected a list of integers, found " + dump_json(e));
     out.push_back(e.get<int64_t>());
   }
   return out;

@@ -8,11 +8,11 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
-#include <nlohmann/json.hpp>
 #include <set>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace egopd {
 
@@ -109,7 +109,7 @@ SafeTensorsFile::SafeTensorsFile(const std::string& path) {
     return true;
   };
   try {
-    header = nlohmann::json::parse(file_->data() + 8, file_->data() + 8 + n, track);
+    header = parse_json(std::string_view(reinterpret_cast<const char*>(file_->data()) + 8, n), track);
   } catch (const std::exception& e) {
     throw Error(path + ": safetensors header is not valid JSON");
   }
@@ -134,10 +134,10 @@ SafeTensorsFile::SafeTensorsFile(const std::string& path) {
     t.name = name;
     t.file = file_;
     if (!v["dtype"].is_string() || !dtype_from_name(v["dtype"].get<std::string>(), &t.dtype))
-      throw bad("unknown dtype " + v["dtype"].dump());
+      throw bad("unknown dtype " + dump_json(v["dtype"]));
     if (!v["shape"].is_array()) throw bad("shape is not a list");
     for (const auto& d : v["shape"]) {
-      if (!d.is_number_integer() || d.get<int64_t>() < 0) throw bad("bad shape " + v["shape"].dump());
+      if (!d.is_number_integer() || d.get<int64_t>() < 0) throw bad("bad shape " + dump_json(v["shape"]));
       t.shape.push_back(d.get<int64_t>());
     }
     if (t.shape.size() > 8) throw bad("rank over 8");
@@ -215,7 +215,7 @@ std::vector<uint8_t> safetensors_header(
     header[name] = {{"dtype", dtype_name(spec.first)}, {"shape", spec.second}, {"data_offsets", {off, off + bytes}}};
     off += bytes;
   }
-  std::string h = header.dump();
+  std::string h = dump_json(header);
   while ((8 + h.size()) % 8) h.push_back(' ');
   std::vector<uint8_t> out(8 + h.size());
   const uint64_t n = h.size();

@@ -3,9 +3,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace egopd {
 namespace fs = std::filesystem;
@@ -151,7 +151,7 @@ WeightMap WeightMap::load_dir(const std::string& dir, const std::string& stem, c
     nlohmann::json j;
     try {
       std::ifstream in(index);
-      j = nlohmann::json::parse(in);
+      j = parse_json(in);
     } catch (const std::exception&) {
       throw Error(index.string() + ": not valid JSON");
     }

@@ -13,12 +13,12 @@
 #include <memory>
 #include <system_error>
 
-#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/interrupt.h"
+#include "core/json_text.h"
 #include "core/kernels/gemm.h"
 #include "core/utf8.h"
 #include "pressure/hand_template.h"
@@ -340,7 +340,7 @@ ojson summary_json(const PredictOptions& o, const ClipSource& src, const Prepare
 void finish_summary(ojson& j, const std::string& dir, const StageTimes& times, double total, ClipOutcome& c) {
   j["timings_s"] = timings_json(times, total);
   j["peak_rss_bytes"] = peak_rss_bytes();
-  c.summary_json = j.dump(2) + "\n";
+  c.summary_json = dump_json(j, 2) + "\n";
   c.seconds = total;
   if (!dir.empty()) write_file_atomic((fs::path(dir) / "summary.json").string(), c.summary_json);
 }

@@ -3,10 +3,10 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <vector>
 
 #include "core/error.h"
+#include "core/json_text.h"
 
 namespace egopd {
 
@@ -55,7 +55,7 @@ PromptFields load_prompt_fields(const std::string& path) {
   if (!in) throw Error(path + ": cannot open metadata file");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    j = parse_json(in);
   } catch (const std::exception&) {
     throw Error(path + ": metadata is not valid JSON");
   }

@@ -4,7 +4,6 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <set>
 
 #include "core/atomic_file.h"
@@ -13,6 +12,7 @@
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/install_dirs.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/synthetic_weights.h"
 #include "core/weights.h"
@@ -261,7 +261,7 @@ std::string shipped_tokenizer_dir() {
               "); set EGOPD_TOKENIZER_DIR");
 }
 
-void write_json_atomic(const std::string& path, const json& j) { write_file_atomic(path, j.dump(2) + "\n"); }
+void write_json_atomic(const std::string& path, const json& j) { write_file_atomic(path, dump_json(j, 2) + "\n"); }
 
 namespace {
 
@@ -286,13 +286,13 @@ void remove_stale_weights(const fs::path& dir, const std::string& stem) {
 }  // namespace
 
 std::string synthetic_model_id(const std::string& preset, uint64_t seed, DType dtype, int lcm_steps) {
-  uint64_t h = fnv1a(scheduler_config_json(lcm_steps).dump());
-  h = fnv1a(preprocessor_config_json().dump(), h);
-  h = fnv1a(model_index_json(lcm_steps, true, true).dump(), h);
+  uint64_t h = fnv1a(dump_json(scheduler_config_json(lcm_steps)));
+  h = fnv1a(dump_json(preprocessor_config_json()), h);
+  h = fnv1a(dump_json(model_index_json(lcm_steps, true, true)), h);
   for (size_t i = 0; i < model_components().size(); ++i) {
     const ModelComponent& c = model_components()[i];
     const json cfg = preset_config(preset, c.folder);
-    h = fnv1a(cfg.dump(), h);
+    h = fnv1a(dump_json(cfg), h);
     const auto params = component_parameters(c.folder, Config(cfg, std::string(c.folder) + "/config.json"));
     h = fnv1a(synthetic_weights_id(params, dtype, component_seed(seed, i)), h);
   }

@@ -4,11 +4,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/error.h"
 #include "core/install_dirs.h"
+#include "core/json_text.h"
 
 namespace egopd {
 namespace {
@@ -65,7 +65,7 @@ HandTemplate HandTemplate::load(const std::string& path) {
   ss << in.rdbuf();
   nlohmann::json doc;
   try {
-    doc = nlohmann::json::parse(ss.str());
+    doc = parse_json(ss.str());
   } catch (const nlohmann::json::parse_error& e) {
     throw Error(path + ": not valid JSON (byte " + std::to_string(e.byte) + ")");
   } catch (const nlohmann::json::exception&) {  // e.g. a number too large for a double (found by fuzz_configs)

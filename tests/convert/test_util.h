@@ -6,10 +6,10 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <string>
 
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/weights.h"
 
 namespace egopd::test {
@@ -38,9 +38,9 @@ inline void set_stored_f32(const std::filesystem::path& file, const std::string&
   f.read(reinterpret_cast<char*>(&header_len), 8);
   std::string header(header_len, '\0');
   f.read(header.data(), std::streamsize(header_len));
-  const nlohmann::json h = nlohmann::json::parse(header);
+  const nlohmann::json h = parse_json(header);
   ASSERT_TRUE(h.contains(tensor)) << tensor;
-  ASSERT_EQ(h[tensor]["dtype"], "F32");
+  ASSERT_EQ(h[tensor]["dtype"].get<std::string>(), "F32");
   const uint64_t begin = h[tensor]["data_offsets"][0].get<uint64_t>();
   f.seekp(std::streamoff(8 + header_len + begin + uint64_t(index) * 4));
   f.write(reinterpret_cast<const char*>(&value), 4);

@@ -4,13 +4,13 @@
 
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "convert/dtype_convert.h"
 #include "convert/inspect.h"
 #include "convert/tensor_io.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "pipeline/synthetic_model.h"
 #include "test_util.h"
@@ -74,7 +74,7 @@ TEST(WriteWeights, ShardedWriteLoadsTheSameTensorsAndReplacesStaleLayouts) {
   EXPECT_EQ(files.back(), "model.safetensors.index.json");
   EXPECT_FALSE(fs::exists(dir.path / "model.safetensors")) << "the stale single file would shadow the index";
   std::ifstream in(dir.path / "model.safetensors.index.json");
-  const nlohmann::json index = nlohmann::json::parse(in);
+  const nlohmann::json index = parse_json(in);
   uint64_t total = 0;
   for (const auto& t : tensors) total += t.nbytes();
   EXPECT_EQ(index["metadata"]["total_size"].get<uint64_t>(), total);

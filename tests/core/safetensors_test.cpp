@@ -9,12 +9,13 @@
 #include <functional>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 
 #include "core/atomic_file.h"
 #include "core/config.h"
 #include "core/error.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/weights.h"
 
@@ -228,13 +229,13 @@ TEST(WeightMap, ShardedCheckpointAndVariants) {
   write_safetensors(d.file("m-00002-of-00002.safetensors"), {to_write("b", Tensor::full({3}, 2.0f))});
   nlohmann::json idx = {{"metadata", {{"total_size", 20}}},
                         {"weight_map", {{"a", "m-00001-of-00002.safetensors"}, {"b", "m-00002-of-00002.safetensors"}}}};
-  write_file_atomic(d.file("m.safetensors.index.json"), idx.dump());
+  write_file_atomic(d.file("m.safetensors.index.json"), dump_json(idx));
   WeightMap m = WeightMap::load_dir(d.path_str(), "m", "sharded");
   EXPECT_EQ(m.root().get_f32("b", {3})[2], 2.0f);
   EXPECT_EQ(m.keys().size(), 2u);
   // an index naming a tensor its shard lacks
   idx["weight_map"]["c"] = "m-00001-of-00002.safetensors";
-  write_file_atomic(d.file("m.safetensors.index.json"), idx.dump());
+  write_file_atomic(d.file("m.safetensors.index.json"), dump_json(idx));
   EXPECT_NE(error_of([&] { WeightMap::load_dir(d.path_str(), "m", "sharded"); }).find("not in the shard"),
             std::string::npos);
   // fp16 variant file
@@ -273,7 +274,7 @@ TEST(WeightMap, RecorderEnumeratesRequests) {
 
 // Found by fuzz_configs: an integer field holding a float too large for int64 was cast (undefined behaviour).
 TEST(Config, IntegerFieldsHoldingHugeOrFractionalNumbersAreErrors) {
-  const Config c(nlohmann::json::parse(R"({"a": 16.0, "b": 1.1e102, "c": 2.5, "d": -1e300})"), "x.json");
+  const Config c(parse_json(R"({"a": 16.0, "b": 1.1e102, "c": 2.5, "d": -1e300})"), "x.json");
   EXPECT_EQ(c.get_int("a"), 16);
   for (const char* k : {"b", "c", "d"})
     EXPECT_NE(error_of([&] { c.get_int(k); }).find("x.json: field '" + std::string(k) + "': expected an integer"),
@@ -282,7 +283,7 @@ TEST(Config, IntegerFieldsHoldingHugeOrFractionalNumbersAreErrors) {
 }
 
 TEST(Config, ListsOrScalarsPerBlockAndErrors) {
-  Config c(nlohmann::json::parse(R"({"heads": 8, "chans": [32, 64], "f": 0.5, "name": "x", "flag": true,
+  Config c(parse_json(R"({"heads": 8, "chans": [32, 64], "f": 0.5, "name": "x", "flag": true,
                                       "nested": {"k": 3}, "bad": "s"})"),
            "cfg.json");
   EXPECT_EQ(c.get_int_per_block("heads", 3), (std::vector<int64_t>{8, 8, 8}));
@@ -295,6 +296,34 @@ TEST(Config, ListsOrScalarsPerBlockAndErrors) {
   EXPECT_NE(e1.find("cfg.json: field 'chans'"), std::string::npos) << e1;
   EXPECT_NE(error_of([&] { c.get_int("bad"); }).find("expected an integer"), std::string::npos);
   EXPECT_NE(error_of([&] { c.get_int("absent"); }).find("missing"), std::string::npos);
+}
+
+TEST(JsonText, ParsesAndWritesBothObjectKinds) {
+  std::istringstream in(R"({"b": [1, 2.5, "x"], "a": {"t": true}})");
+  const nlohmann::json j = parse_json(in);
+  EXPECT_EQ(dump_json(j), R"({"a":{"t":true},"b":[1,2.5,"x"]})");  // keys sorted
+  EXPECT_EQ(dump_json(j["a"], 2), "{\n  \"t\": true\n}");
+  nlohmann::ordered_json o;
+  o["z"] = 1;
+  o["a"] = nullptr;
+  EXPECT_EQ(dump_json(o), R"({"z":1,"a":null})");  // insertion order
+  EXPECT_THROW(parse_json(std::string_view(R"({"a": )")), nlohmann::json::parse_error);
+  // The callback sees every key; text outside the view is not read.
+  const std::string text = R"({"k": 1, "k": 2}trailing)";
+  int keys = 0;
+  const nlohmann::json::parser_callback_t count = [&](int depth, nlohmann::json::parse_event_t event,
+                                                     nlohmann::json&) {
+    keys += depth == 1 && event == nlohmann::json::parse_event_t::key;
+    return true;
+  };
+  EXPECT_EQ(parse_json(std::string_view(text).substr(0, text.size() - 8), count)["k"].get<int>(), 2);
+  EXPECT_EQ(keys, 2);
+}
+
+TEST(JsonText, InvalidUtf8IsAnErrorUnlessReplaced) {
+  const nlohmann::json j = std::string("a\xff");
+  EXPECT_THROW(dump_json(j), nlohmann::json::type_error);
+  EXPECT_EQ(dump_json(j, -1, true), "\"a\xEF\xBF\xBD\"");
 }
 
 }  // namespace

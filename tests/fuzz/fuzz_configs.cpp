@@ -1,11 +1,10 @@
 // Every config reader on the same JSON document: U-Net, VAE, CLIP text and vision towers, mask encoder, both
 // samplers, the model_index defaults, the CLIP image normalisation (feature extractor) and the hand template.
-#include <nlohmann/json.hpp>
-
 #include "clip_image/clip_encoder.h"
 #include "clip_image/clip_vision.h"
 #include "clip_image/svd_preprocess.h"
 #include "core/config.h"
+#include "core/json_text.h"
 #include "fuzz_common.h"
 #include "mask_encoder/mask_encoder.h"
 #include "pipeline/egopressurediff.h"
@@ -26,8 +25,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   fuzz::expect_only_egopd_errors([&] { (void)ClipImageNormalization::load(path); });
   fuzz::expect_only_egopd_errors([&] { (void)HandTemplate::load(path); });
   // ... and every reader on a parsed document.
-  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-  if (j.is_discarded()) return 0;
+  nlohmann::json j;
+  try {
+    j = parse_json(text);
+  } catch (const nlohmann::json::parse_error&) {
+    return 0;
+  }
   const Config c(j, "fuzz/config.json");
   fuzz::expect_only_egopd_errors([&] { (void)UNetConfig::from(c); });
   fuzz::expect_only_egopd_errors([&] { (void)VaeConfig::from(c); });

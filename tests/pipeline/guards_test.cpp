@@ -10,11 +10,11 @@
 #include <functional>
 #include <fstream>
 #include <limits>
-#include <nlohmann/json.hpp>
 
 #include "convert/test_util.h"
 #include "core/error.h"
 #include "core/finite_check.h"
+#include "core/json_text.h"
 #include "pipeline/predict_run.h"
 #include "pipeline/synthetic_model.h"
 #include "pressure/heatmap_image.h"
@@ -88,10 +88,10 @@ class Guards : public ::testing::Test {
     return "no error";
   }
   void edit_json(const fs::path& file, const std::function<void(nlohmann::json&)>& edit) {
-    nlohmann::json j;
-    std::ifstream(file) >> j;
+    std::ifstream in(file);
+    nlohmann::json j = parse_json(in);
     edit(j);
-    std::ofstream(file) << j.dump(2);
+    std::ofstream(file) << dump_json(j, 2);
   }
 };
 

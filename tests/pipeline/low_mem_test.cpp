@@ -10,8 +10,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/threading.h"
 #include "core/weights.h"
@@ -130,9 +130,9 @@ TEST_F(PipelineModes, PredictWritesLowMemSummary) {
   o.out_dir = (root / "predict").string();
   ASSERT_EQ(run_predict(o), 0);
   std::ifstream in(root / "predict" / "summary.json");
-  const nlohmann::json j = nlohmann::json::parse(in);
-  EXPECT_EQ(j["low_mem"], true);
-  EXPECT_EQ(j["decode_chunk"], o.frames);  // the whole clip in one decode, as in normal mode
+  const nlohmann::json j = parse_json(in);
+  EXPECT_TRUE(j["low_mem"].get<bool>());
+  EXPECT_EQ(j["decode_chunk"].get<int64_t>(), o.frames);  // the whole clip in one decode, as in normal mode
   EXPECT_TRUE(fs::exists(root / "predict" / "taxels.csv"));
 }
 

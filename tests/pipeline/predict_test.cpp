@@ -8,12 +8,12 @@
 
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
 #include "core/interrupt.h"
+#include "core/json_text.h"
 #include "pipeline/egopressurediff.h"
 #include "pipeline/media.h"
 #include "pipeline/predict_run.h"
@@ -93,16 +93,16 @@ TEST_F(Predict, WritesEveryOutput) {
   ASSERT_EQ(run_predict(o), 0);
   const fs::path out = root / "plain";
   expect_prediction_folder(out, 2);
-  const auto j = nlohmann::json::parse(read(out / "summary.json"));
-  EXPECT_EQ(j["prompt"], "This video shows the action of picking up a CocaCola. The weight of a CocaCola is 355g, "
+  const auto j = parse_json(read(out / "summary.json"));
+  EXPECT_EQ(j["prompt"].get<std::string>(), "This video shows the action of picking up a CocaCola. The weight of a CocaCola is 355g, "
                          "and its surface material is aluminum.");
-  EXPECT_EQ(j["seed"], 3);
-  EXPECT_EQ(j["sampler"], "euler");
-  EXPECT_EQ(j["steps"], 2);
-  EXPECT_EQ(j["frames"], 2);
-  EXPECT_EQ(j["size"], 64);
+  EXPECT_EQ(j["seed"].get<int>(), 3);
+  EXPECT_EQ(j["sampler"].get<std::string>(), "euler");
+  EXPECT_EQ(j["steps"].get<int>(), 2);
+  EXPECT_EQ(j["frames"].get<int>(), 2);
+  EXPECT_EQ(j["size"].get<int>(), 64);
   EXPECT_EQ(j["per_frame"].size(), 2u);
-  EXPECT_EQ(j["per_frame"][1]["source_index"], 4);
+  EXPECT_EQ(j["per_frame"][1]["source_index"].get<int>(), 4);
   EXPECT_TRUE(j["template"]["synthetic"].get<bool>());
   EXPECT_GT(j["timings_s"]["denoise"].get<double>(), 0.0);
   EXPECT_GT(j["timings_s"]["total"].get<double>(), 0.0);
@@ -120,8 +120,8 @@ TEST_F(Predict, CounterfactualReusesEncodingAndMatchesPredict) {
   const std::string csv = read(out / "forces.csv");
   EXPECT_NE(csv.find("\nweight_1000g,weight,\"1000g\","), std::string::npos) << csv;
   EXPECT_NE(csv.find("\nweight_omit,weight,\"omit\","), std::string::npos) << csv;
-  const auto j = nlohmann::json::parse(read(out / "weight_omit" / "summary.json"));
-  EXPECT_EQ(j["prompt"], "This video shows the action of picking up a CocaCola. The surface material of a CocaCola "
+  const auto j = parse_json(read(out / "weight_omit" / "summary.json"));
+  EXPECT_EQ(j["prompt"].get<std::string>(), "This video shows the action of picking up a CocaCola. The surface material of a CocaCola "
                          "is aluminum.");
 
   // The same prompt and seed through predict gives the same taxels: the shared conditioning and noise are exact.

@@ -116,8 +116,8 @@ TEST(Evaluation, PredictionEqualToStabilisedGroundTruthIsPerfect) {
   const auto j = evaluation_json(r, t, {});
   for (const char* k : {"temporal_accuracy_pct", "contact_iou_pct", "volumetric_iou_pct", "mae_newton", "cop_error_grid", "frames"})
     EXPECT_TRUE(j.contains(k)) << k;
-  EXPECT_EQ(j["frames"], 16);
-  EXPECT_EQ(j["template"]["synthetic"], true);
+  EXPECT_EQ(j["frames"].get<int>(), 16);
+  EXPECT_TRUE(j["template"]["synthetic"].get<bool>());
   fs::remove_all(d);
 }
 
@@ -144,7 +144,7 @@ TEST(Evaluation, SplitDirectoriesArePooled) {
   EXPECT_NEAR(m.mae_newton, 108.0 / 24.0, 1e-12);
   EXPECT_NEAR(m.cop_error_grid, (1.0 / (0.5 + 1e-6) + 0.3 / (0.03 + 1e-6)) / 3.0, 1e-12);
   const auto j = evaluation_json(r, t, {});
-  EXPECT_EQ(j["frames"], 3);
+  EXPECT_EQ(j["frames"].get<int>(), 3);
   EXPECT_TRUE(j["clips"][1]["contact_iou_pct"].is_number());
   EXPECT_TRUE(j["cop_error_by_part"]["tip_middle"]["error_grid"].is_null());  // undefined -> null
 

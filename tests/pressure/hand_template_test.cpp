@@ -1,6 +1,5 @@
 // Template loading: the shipped synthetic default and one-line errors naming file and field.
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include <cstdlib>
@@ -9,6 +8,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/json_text.h"
 #include "pressure/hand_template.h"
 #include "pressure/renderer.h"
 
@@ -18,7 +18,7 @@ namespace {
 const std::string kShipped = std::string(EGOPD_TEST_DATA) + "/../data/templates/synthetic_right_hand.json";
 
 nlohmann::json minimal() {
-  return nlohmann::json::parse(R"({
+  return parse_json(R"({
     "format": "egopd-hand-template/1", "name": "tiny", "synthetic": true,
     "sensors": [{"id": 1, "x": 2.0, "y": 3.0, "region": "palm"},
                 {"id": 0, "x": 1.0, "y": 1.0, "region": "tip_thumb"}],

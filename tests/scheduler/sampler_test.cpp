@@ -1,9 +1,9 @@
 // Sampler schedules against the worked tables of scheduler.md (§1.5, §3.4), step formulas against a plain
 // double-precision evaluation, any-N properties and config errors.
+#include "core/json_text.h"
 #include "scheduler/sampler.h"
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -289,7 +289,7 @@ class ConfigErrors : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
   std::string write(const nlohmann::json& j) {
     const std::string p = (dir_ / "scheduler_config.json").string();
-    std::ofstream(p) << j.dump();
+    std::ofstream(p) << dump_json(j);
     return p;
   }
   // The error of loading j, or "" if it loads.

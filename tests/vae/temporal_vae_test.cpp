@@ -1,6 +1,5 @@
 // TemporalVAE as a whole: parameter tree and strict loading, golden cases, chunked decoding (vae.md §5.2), scaling.
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -13,6 +12,7 @@
 #include "core/atomic_file.h"
 #include "core/error.h"
 #include "core/golden.h"
+#include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/threading.h"
 #include "vae/temporal_vae.h"
@@ -69,7 +69,7 @@ VaeConfig tiny_config() {
 // Writes config + weights for `cfg` from the parameter list, letting `edit` drop/reshape/add entries.
 void write_model(const std::string& dir, const VaeConfig& cfg,
                  const std::function<void(std::vector<std::pair<std::string, Shape>>&)>& edit) {
-  write_file_atomic((fs::path(dir) / "config.json").string(), cfg.to_json().dump());
+  write_file_atomic((fs::path(dir) / "config.json").string(), dump_json(cfg.to_json()));
   auto params = vae_parameter_shapes(cfg);
   edit(params);
   std::vector<TensorToWrite> w;
