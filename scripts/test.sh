@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # The test command: install what is missing, build (Release), run every unit and golden test; install the build into
 # a temporary prefix and build and run the C example and the Python module's tests against it
-# (tests/install/install_test.sh); then build the tests again with AddressSanitizer + UndefinedBehaviorSanitizer in
-# build-asan/ (on a CPU without AVX-512, with the avx512 path emulated) and run them there too; then fuzz every
-# parser for a bounded time (scripts/fuzz.sh) and run a Slurm job array on a one-node local cluster
-# (tests/slurm/slurm_test.sh); last, cross-build for AArch64 and run the kernel,
+# (tests/install/install_test.sh); then build the tests again with clang, AddressSanitizer and
+# UndefinedBehaviorSanitizer in build-asan/ (on a CPU without AVX-512, with the avx512 path emulated), run them there
+# too and fuzz every parser for a bounded time with the same build (scripts/fuzz.sh); then run a Slurm job array on a
+# one-node local cluster (tests/slurm/slurm_test.sh); last, cross-build for AArch64 and run the kernel,
 # model-component and golden tests under qemu-aarch64 on the neon and portable paths (scripts/test-arm64.sh --quick).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,18 +20,21 @@ echo "== install: the C example against an installed prefix (pkg-config, find_pa
 ./scripts/install-packages.sh python3 python3-numpy python3-pytest python3-matplotlib python3-pip python3-setuptools
 tests/install/install_test.sh build build/install_test_work
 
-echo "== sanitizer build (ASan + UBSan) =="
-# On a CPU without AVX-512 this build emulates the avx512 path (SIMDe; README, "Commands"), so that its code, BF16
-# and VNNI micro-kernels included, runs under every kernel and golden test (they run every available path) on every
-# machine, and under the sanitizers; where the CPU has AVX-512 the native path runs here instead. egopd's own CPU check
-# decides (AVX-512 F, BW, VL and DQ, enabled by the OS), not one flag of /proc/cpuinfo.
+echo "== sanitizer build (ASan + UBSan, clang) and its tests =="
+# One clang build serves the sanitizer test run and the fuzzers (libFuzzer is clang's): every test runs under ASan +
+# UBSan, then every fuzz target. On a CPU without AVX-512 this build emulates the avx512 path (SIMDe; README,
+# "Commands"), so that its code, BF16 and VNNI micro-kernels included, runs under every kernel and golden test (they
+# run every available path) on every machine, and under the sanitizers; where the CPU has AVX-512 the native path
+# runs here instead. egopd's own CPU check decides (AVX-512 F, BW, VL and DQ, enabled by the OS), not one flag of
+# /proc/cpuinfo.
 emulate_avx512=ON
 case "$(env -u EGOPD_KERNELS build/bin/egopd --version)" in
   *"kernels: avx512"*) emulate_avx512=OFF ;;
 esac
+./scripts/install-packages.sh clang-14 libclang-rt-14-dev libomp-14-dev
 if [ $emulate_avx512 = ON ]; then ./scripts/install-packages.sh libsimde-dev; fi
-cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=Release -DEGOPD_SANITIZE=ON -DEGOPD_BUILD_BENCH=OFF \
-  -DEGOPD_EMULATE_AVX512=$emulate_avx512 >/dev/null
+cmake -S . -B build-asan -G Ninja -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
+  -DCMAKE_BUILD_TYPE=Release -DEGOPD_FUZZ=ON -DEGOPD_BUILD_BENCH=OFF -DEGOPD_EMULATE_AVX512=$emulate_avx512 >/dev/null
 cmake --build build-asan -j"$jobs"
 if [ $emulate_avx512 = ON ]; then EGOPD_KERNELS=avx512 build-asan/bin/egopd --version; fi
 # Not under the sanitizers: the Winograd accuracy test on the real layer shapes (pure arithmetic on large buffers, 166 s
@@ -40,7 +43,7 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
   ctest --test-dir build-asan --output-on-failure -j"$jobs" -E 'WinogradRealShapes'
 
 echo "== fuzzing: every parser of user files, 20 s each (libFuzzer, ASan + UBSan) =="
-./scripts/fuzz.sh 20
+./scripts/fuzz.sh --build build-asan 20
 
 echo "== Slurm: a job array on a one-node local cluster =="
 if [ "$(id -u)" -eq 0 ]; then

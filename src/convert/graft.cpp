@@ -136,12 +136,13 @@ void graft_model(const GraftOptions& o) {
       tensors.push_back({key, s->dtype, s->shape, [s](uint8_t* dst) { copy_stored(*s, dst); }});
       continue;
     }
+    const std::string name = key;  // lambdas capture variables, not structured bindings (C++20, not in clang 14)
     const Shape sh = shape;
     const WeightMap* st = &stock;
     const uint64_t seed = o.seed;
-    tensors.push_back({key, pifr_dtype, shape.vec(), [key, sh, st, seed, pifr_dtype](uint8_t* dst) {
+    tensors.push_back({key, pifr_dtype, shape.vec(), [name, sh, st, seed, pifr_dtype](uint8_t* dst) {
                          std::vector<float> v(size_t(sh.numel()));
-                         graft_pifr_values(key, sh, *st, seed, v.data());
+                         graft_pifr_values(name, sh, *st, seed, v.data());
                          store_values(v.data(), sh.numel(), pifr_dtype, dst);
                        }});
   }
@@ -153,12 +154,13 @@ void graft_model(const GraftOptions& o) {
   const json mask_cfg = mask_config_for(vae_cfg);
   std::vector<OutTensor> mask;
   for (const auto& [key, shape] : component_parameters("mask_encoder", Config(mask_cfg, "mask_encoder/config.json"))) {
+    const std::string name = key;
     const Shape sh = shape;
     const bool zero = key.rfind("conv_out.", 0) == 0;
     const uint64_t seed = o.seed;
-    mask.push_back({key, pifr_dtype, shape.vec(), [key, sh, zero, seed, pifr_dtype](uint8_t* dst) {
+    mask.push_back({key, pifr_dtype, shape.vec(), [name, sh, zero, seed, pifr_dtype](uint8_t* dst) {
                       std::vector<float> v(size_t(sh.numel()), 0.0f);
-                      if (!zero) synthetic_values(key, sh, seed, v.data());
+                      if (!zero) synthetic_values(name, sh, seed, v.data());
                       store_values(v.data(), sh.numel(), pifr_dtype, dst);
                     }});
   }

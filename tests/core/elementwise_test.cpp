@@ -124,7 +124,8 @@ TEST(Elementwise, Avx512BitIdenticalToAvx2) {
 
   std::mt19937 rng(5);
   std::normal_distribution<float> nd(0.0f, 5.0f);
-  for (auto [rows, d] : {std::pair<int64_t, int64_t>{7, 1}, {5, 15}, {5, 17}, {3, 37}, {64, 200}}) {
+  for (const auto& shape : {std::pair<int64_t, int64_t>{7, 1}, {5, 15}, {5, 17}, {3, 37}, {64, 200}}) {
+    const int64_t rows = shape.first, d = shape.second;  // variables, not bindings: the lambda below captures them
     SCOPED_TRACE(testing::Message() << "geglu rows=" << rows << " d=" << d);
     std::vector<float> p(rows * 2 * d);
     for (float& v : p) v = nd(rng);

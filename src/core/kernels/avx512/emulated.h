@@ -154,6 +154,9 @@ inline simde__m512bh cvtne2ps_pbh(simde__m512 a, simde__m512 b) {  // b's lanes 
 #define _mm512_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float>(p, k, a)
 #define _mm512_mask_storeu_epi32(p, k, a) egopd::avx512_emulated::masked_store<int32_t>(p, k, a)
 #define _mm256_mask_storeu_ps(p, k, a) egopd::avx512_emulated::masked_store<float>(p, k, a)
+// clang declares every intrinsic whatever the target (these two as macros, for their immediates): replaced here.
+#undef _mm512_shuffle_f32x4
+#undef _mm512_extractf32x8_ps
 #define _mm512_shuffle_f32x4(a, b, imm8) simde_mm512_shuffle_f32x4(a, b, imm8)
 #define _mm512_extractf32x8_ps(a, imm8) egopd::avx512_emulated::extractf32x8_ps(a, imm8)
 #define _mm512_cvtepu16_epi32(a) egopd::avx512_emulated::cvtepu16_epi32(a)
