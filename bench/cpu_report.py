@@ -1,0 +1,162 @@
+#!/usr/bin/python3
+"""The per-CPU figures of egopd's kernel paths, measured side by side in one run on this machine.
+
+For every kernel path the CPU has (avx512, avx2, neon; not portable, which is for correctness): the real-size U-Net
+evaluation in fp32, VAE decode 16 x 256x256 and a whole 4-step run; on the default path the U-Net in bf16 and int8
+too; PyTorch CPU's U-Net (bench/pytorch/bench.py) for the ratio. The measurements alternate, ROUNDS times, so that a
+shared host's drift hits them alike; the table gives the minimum and median seconds, each row's ratio to the
+default path's fp32 figure (or to PyTorch), and the CPU, kernel flags and measured peak it ran on. Then the GEMM
+and 3x3 convolution kernels against OpenBLAS and oneDNN (kernels_bench through bench/alternate.sh). What cannot run
+(no PyTorch, kernels_bench built without OpenBLAS/oneDNN) is reported as skipped.
+
+usage: bench/cpu_report.py [--rounds N] [--quick] [--egopd PATH] [--kernels-bench PATH]
+  --rounds N   alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
+  --quick      2 frames of 64x64 and the tiny pipeline: a smoke test of the script (~3 minutes)
+"""
+import argparse
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run_json(argv, env=None):
+    """Runs a bench command and returns its last JSON line (the report)."""
+    p = subprocess.run(argv, env=env, capture_output=True, text=True)
+    if p.returncode != 0:
+        raise RuntimeError(f"{' '.join(argv)}: exit {p.returncode}: {p.stderr.strip().splitlines()[-1:]}")
+    lines = [l for l in p.stdout.splitlines() if l.startswith("{")]
+    if not lines:
+        raise RuntimeError(f"{' '.join(argv)}: no JSON report")
+    return json.loads(lines[-1])
+
+
+def kernel_paths(egopd):
+    """The paths this CPU runs, widest first, and the default one (from egopd --version)."""
+    env = {k: v for k, v in os.environ.items() if k != "EGOPD_KERNELS"}
+    default = re.search(r"kernels: (\w+)", subprocess.run([egopd, "--version"], env=env, capture_output=True,
+                                                          text=True, check=True).stdout).group(1)
+    paths = []
+    for path in ("avx512", "avx2", "neon"):
+        r = subprocess.run([egopd, "--version"], env={**env, "EGOPD_KERNELS": path}, capture_output=True, text=True)
+        if r.returncode == 0:
+            paths.append(path)
+    return paths, default
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--egopd", default=os.path.join(ROOT, "build/bin/egopd"))
+    ap.add_argument("--kernels-bench", default=os.path.join(ROOT, "build/bin/kernels_bench"))
+    ap.add_argument("--threads", type=int, default=os.cpu_count())
+    a = ap.parse_args()
+    if a.rounds < 1:
+        sys.exit("cpu_report: --rounds must be at least 1")
+    if not os.access(a.egopd, os.X_OK):
+        sys.exit(f"cpu_report: {a.egopd}: not built (scripts/build.sh)")
+
+    frames, size = ("2", "64") if a.quick else ("16", "256")
+    threads = str(a.threads)
+    paths, default = kernel_paths(a.egopd)
+    unet = [a.egopd, "bench", "unet", "--frames", frames, "--size", size, "--pifr", "--evals", "1",
+            "--threads", threads, "--json"]
+    vae = [a.egopd, "bench", "vae_decode", "--frames", frames, "--size", size, "--threads", threads, "--json"]
+    pipe = [a.egopd, "bench", "pipeline", "--steps", "4", "--threads", threads, "--json"]
+    if a.quick:
+        pipe[3:3] = ["--config", "tiny", "--frames", frames, "--size", size]
+
+    # (label, argv, EGOPD_KERNELS or None, baseline label)
+    jobs = []
+    for path in paths:
+        jobs.append((f"U-Net fp32, {path}", unet, path, f"U-Net fp32, {default}"))
+    for precision in ("bf16", "int8"):
+        jobs.append((f"U-Net {precision}, {default}", unet + ["--precision", precision], default,
+                     f"U-Net fp32, {default}"))
+    for path in paths:
+        jobs.append((f"VAE decode, {path}", vae, path, f"VAE decode, {default}"))
+    for path in paths:
+        jobs.append((f"4-step run, {path}", pipe, path, f"4-step run, {default}"))
+    torch_job = None
+    try:
+        import torch  # noqa: F401  (only whether it is installed)
+        torch_job = ("PyTorch U-Net fp32", ["/usr/bin/python3", os.path.join(ROOT, "bench/pytorch/bench.py"), "unet",
+                     "--frames", frames, "--size", size, "--pifr", "--threads", threads, "--repeat", "1"], None, None)
+    except ImportError:
+        print("cpu_report: PyTorch is not installed (Debian: python3-torch): no PyTorch row", file=sys.stderr)
+
+    times = {}
+    facts = {}
+    for r in range(a.rounds):
+        for label, argv, path, _ in jobs + ([torch_job] if torch_job else []):
+            env = dict(os.environ)
+            env.pop("EGOPD_KERNELS", None)
+            if path:
+                env["EGOPD_KERNELS"] = path
+            rep = run_json(argv, env)
+            times.setdefault(label, []).append(rep["seconds"])
+            if path:  # egopd's report: the CPU, and per path its flags and measured FP32 peak
+                facts["cpu"] = rep.get("cpu", "?")
+                facts.setdefault("flags", {})[path] = rep.get("kernel_features", "?")
+                facts.setdefault("peak", {}).setdefault(path, []).append(rep["peak_gflops"])
+            print(f"round {r + 1}/{a.rounds}: {label}: {rep['seconds']:.2f} s", file=sys.stderr, flush=True)
+
+    print(f"CPU: {facts['cpu']}; {a.threads} threads; kernel paths (flags; measured FP32 peak): "
+          + ", ".join(f"{p} ({f}; {min(facts['peak'][p]):.0f}-{max(facts['peak'][p]):.0f} GFLOP/s)"
+                      for p, f in facts["flags"].items()) + f"; default {default}")
+    print(f"{a.rounds} alternating rounds, {frames} frames of {size}x{size}\n")
+    print("| work | min s | median s | ratio (median) |")
+    print("|---|---|---|---|")
+    for label, _, _, base in jobs + ([torch_job] if torch_job else []):
+        t = times[label]
+        if label.startswith("PyTorch"):
+            ratio = "1.00 (egopd fp32 " + default + ": " + \
+                f"{statistics.median(times[f'U-Net fp32, {default}']) / statistics.median(t):.2f}x its time)"
+        else:
+            ratio = f"{statistics.median(times[base]) / statistics.median(t):.2f}x speed of {base}"
+        print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} |")
+
+    kb = a.kernels_bench
+    if not os.access(kb, os.X_OK):
+        print(f"\ncpu_report: {kb}: not built (EGOPD_BUILD_BENCH=ON and libbenchmark-dev): no kernel rows")
+        return
+    listed = subprocess.run([kb, "--benchmark_list_tests"], capture_output=True, text=True).stdout
+    # Pairs of the same shape: egopd's F32 GEMM against OpenBLAS's SGEMM; egopd's direct 3x3 convolution (F32
+    # weights, EGOPD_CONV=direct: kernel against kernel) against oneDNN's direct convolution on its blocked layouts.
+    for what, pattern, needed, pair in (
+            ("GEMM", "BM_(egopd_gemm/.*dt:0|openblas_sgemm)/", "openblas",
+             lambda n: n.replace("BM_egopd_gemm/", "BM_openblas_sgemm/")),
+            ("3x3 convolution (egopd direct)", "BM_(egopd_conv3x3/.*v:0|onednn_conv3x3/.*v:1)/", "onednn",
+             lambda n: n.replace("BM_egopd_conv3x3/", "BM_onednn_conv3x3/").replace("/v:0", "/v:1"))):
+        if f"BM_{needed}" not in listed:
+            print(f"\n{what}: skipped ({kb} was built without {needed})")
+            continue
+        env = dict(os.environ, EGOPD_CONV="direct")
+        out = subprocess.run([os.path.join(ROOT, "bench/alternate.sh"), str(a.rounds), pattern, kb], env=env,
+                             capture_output=True, text=True, check=True).stdout
+        median = {}
+        for line in out.splitlines():  # NAME BINARY min X median Y UNIT (n=R)
+            f = line.split()
+            median[f[0]] = (float(f[3]), float(f[5]), f[6])
+        print(f"\n{what} against {needed} ({os.path.basename(kb)}, {a.rounds} alternating rounds; ratio of medians, "
+              f"> 1: egopd faster)\n")
+        print(f"| shape | egopd min / median | {needed} min / median | ratio |")
+        print("|---|---|---|---|")
+        for name, (lo, med, unit) in sorted(median.items()):
+            other = median.get(pair(name))
+            if not name.startswith("BM_egopd") or other is None:
+                continue
+            shape = re.sub(r"/(dt|v):\d+/real_time$", "", name.split("/", 1)[1])
+            print(f"| {shape} | {lo:.2f} / {med:.2f} {unit} | {other[0]:.2f} / {other[1]:.2f} {other[2]} | "
+                  f"{other[1] / med:.2f}x |")
+
+if __name__ == "__main__":
+    try:
+        main()
+    except (RuntimeError, subprocess.CalledProcessError) as e:
+        sys.exit(f"cpu_report: {e}")
