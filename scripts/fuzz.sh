@@ -5,8 +5,8 @@
 #
 #   scripts/fuzz.sh [--build DIR] [SECONDS_PER_TARGET] [TARGET...]     (default: 30 s each, every target)
 #
-# Without --build, the fuzz targets alone are built in $build/; --build DIR uses a build configured with
-# -DEGOPD_FUZZ=ON and clang (the test command's sanitizer build, whose tests ran under the same instrumentation).
+# Without --build, the fuzz targets alone are built in build-fuzz/; --build DIR uses a build configured by
+# scripts/configure-fuzz-build.sh (the test command's sanitizer build, whose tests ran under the same instrumentation).
 # Seeds: tests/fuzz/corpus/<target>/ (in the repository); inputs found along the way go to DIR/corpus/<target>/.
 # A crash, a sanitizer report, a hang (> 10 s for one input) or an exception other than egopd's one-line Error fails
 # the script and leaves the reproducer in DIR/findings/ with the command that replays it.
@@ -28,9 +28,7 @@ targets=("$@")
 jobs=$(nproc 2>/dev/null || echo 2)
 if [ -z "$build" ]; then
   build=build-fuzz
-  ./scripts/install-packages.sh clang-14 libclang-rt-14-dev libomp-14-dev
-  cmake -S . -B "$build" -G Ninja -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
-    -DCMAKE_BUILD_TYPE=Release -DEGOPD_FUZZ=ON -DEGOPD_BUILD_TESTS=OFF -DEGOPD_BUILD_BENCH=OFF >/dev/null
+  ./scripts/configure-fuzz-build.sh "$build" -DEGOPD_BUILD_TESTS=OFF -DEGOPD_BUILD_BENCH=OFF
 elif ! grep -qx "EGOPD_FUZZ:BOOL=ON" "$build/CMakeCache.txt" 2>/dev/null; then
   echo "fuzz.sh: $build is not a build configured with -DEGOPD_FUZZ=ON" >&2
   exit 2

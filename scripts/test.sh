@@ -31,10 +31,8 @@ emulate_avx512=ON
 case "$(env -u EGOPD_KERNELS build/bin/egopd --version)" in
   *"kernels: avx512"*) emulate_avx512=OFF ;;
 esac
-./scripts/install-packages.sh clang-14 libclang-rt-14-dev libomp-14-dev
 if [ $emulate_avx512 = ON ]; then ./scripts/install-packages.sh libsimde-dev; fi
-cmake -S . -B build-asan -G Ninja -DCMAKE_C_COMPILER=clang-14 -DCMAKE_CXX_COMPILER=clang++-14 \
-  -DCMAKE_BUILD_TYPE=Release -DEGOPD_FUZZ=ON -DEGOPD_BUILD_BENCH=OFF -DEGOPD_EMULATE_AVX512=$emulate_avx512 >/dev/null
+./scripts/configure-fuzz-build.sh build-asan -DEGOPD_BUILD_BENCH=OFF -DEGOPD_EMULATE_AVX512=$emulate_avx512
 cmake --build build-asan -j"$jobs"
 if [ $emulate_avx512 = ON ]; then EGOPD_KERNELS=avx512 build-asan/bin/egopd --version; fi
 # Not under the sanitizers: the Winograd accuracy test on the real layer shapes (pure arithmetic on large buffers, 166 s
