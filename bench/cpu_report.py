@@ -3,11 +3,13 @@
 
 For every kernel path the CPU has (avx512, avx2, neon; not portable, which is for correctness): the real-size U-Net
 evaluation in fp32, VAE decode 16 x 256x256 and a whole 4-step run; on the default path the U-Net in bf16 and int8
-too; PyTorch CPU's U-Net (bench/pytorch/bench.py) for the ratio. The measurements alternate, ROUNDS times, so that a
+too, and with --conv direct (whose share of the peak is the kernels' own: Winograd's runs count the FLOPs they save);
+PyTorch CPU's U-Net (bench/pytorch/bench.py) for the ratio. The measurements alternate, ROUNDS times, so that a
 shared host's drift hits them alike; the table gives the minimum and median seconds, each row's ratio to the
-default path's fp32 figure (or to PyTorch), and the CPU, kernel flags and measured peak it ran on. Then the GEMM
-and 3x3 convolution kernels against OpenBLAS and oneDNN (kernels_bench through bench/alternate.sh). What cannot run
-(no PyTorch, kernels_bench built without OpenBLAS/oneDNN) is reported as skipped.
+default path's fp32 figure (or to PyTorch) and median share of the peak, and the CPU, kernel flags and measured peak
+it ran on. Then the GEMM and 3x3 convolution kernels against OpenBLAS and oneDNN (kernels_bench through
+bench/alternate.sh). What cannot run (no PyTorch, kernels_bench built without OpenBLAS/oneDNN) is reported as
+skipped.
 
 usage: bench/cpu_report.py [--rounds N] [--quick] [--egopd PATH] [--kernels-bench PATH]
   --rounds N   alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
@@ -75,6 +77,9 @@ def main():
     jobs = []
     for path in paths:
         jobs.append((f"U-Net fp32, {path}", unet, path, f"U-Net fp32, {default}"))
+    # The direct convolutions do all the arithmetic the FLOP count assumes: their share of the peak is the kernels'.
+    jobs.append((f"U-Net fp32 --conv direct, {default}", unet + ["--conv", "direct"], default,
+                 f"U-Net fp32, {default}"))
     for precision in ("bf16", "int8"):
         jobs.append((f"U-Net {precision}, {default}", unet + ["--precision", precision], default,
                      f"U-Net fp32, {default}"))
@@ -91,6 +96,7 @@ def main():
         print("cpu_report: PyTorch is not installed (Debian: python3-torch): no PyTorch row", file=sys.stderr)
 
     times = {}
+    shares = {}  # label -> percent_of_peak of each run (direct-fp32-equivalent FLOPs over the peak measured beside it)
     facts = {}
     for r in range(a.rounds):
         for label, argv, path, _ in jobs + ([torch_job] if torch_job else []):
@@ -100,6 +106,8 @@ def main():
                 env["EGOPD_KERNELS"] = path
             rep = run_json(argv, env)
             times.setdefault(label, []).append(rep["seconds"])
+            if "percent_of_peak" in rep:
+                shares.setdefault(label, []).append(rep["percent_of_peak"])
             if path:  # egopd's report: the CPU, and per path its flags and measured FP32 peak
                 facts["cpu"] = rep.get("cpu", "?")
                 facts.setdefault("flags", {})[path] = rep.get("kernel_features", "?")
@@ -110,8 +118,8 @@ def main():
           + ", ".join(f"{p} ({f}; {min(facts['peak'][p]):.0f}-{max(facts['peak'][p]):.0f} GFLOP/s)"
                       for p, f in facts["flags"].items()) + f"; default {default}")
     print(f"{a.rounds} alternating rounds, {frames} frames of {size}x{size}\n")
-    print("| work | min s | median s | ratio (median) |")
-    print("|---|---|---|---|")
+    print("| work | min s | median s | ratio (median) | % of peak (median; direct-fp32-equivalent FLOPs) |")
+    print("|---|---|---|---|---|")
     for label, _, _, base in jobs + ([torch_job] if torch_job else []):
         t = times[label]
         if label.startswith("PyTorch"):
@@ -119,7 +127,8 @@ def main():
                 f"{statistics.median(times[f'U-Net fp32, {default}']) / statistics.median(t):.2f}x its time)"
         else:
             ratio = f"{statistics.median(times[base]) / statistics.median(t):.2f}x speed of {base}"
-        print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} |")
+        share = f"{statistics.median(shares[label]):.1f}%" if label in shares else "-"
+        print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} | {share} |")
 
     kb = a.kernels_bench
     if not os.access(kb, os.X_OK):
