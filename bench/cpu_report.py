@@ -6,10 +6,10 @@ evaluation in fp32, VAE decode 16 x 256x256 and a whole 4-step run; on the defau
 too, and with --conv direct (whose share of the peak is the kernels' own: Winograd's runs count the FLOPs they save);
 PyTorch CPU's U-Net (bench/pytorch/bench.py) for the ratio. The measurements alternate, ROUNDS times, so that a
 shared host's drift hits them alike; the table gives the minimum and median seconds, each row's ratio to the
-default path's fp32 figure (or to PyTorch) and median share of the peak, and the CPU, kernel flags and measured peak
-it ran on. Then the GEMM and 3x3 convolution kernels against OpenBLAS and oneDNN (kernels_bench through
-bench/alternate.sh). What cannot run (no PyTorch, kernels_bench built without OpenBLAS/oneDNN) is reported as
-skipped.
+default path's fp32 figure (or to PyTorch), median share of the peak and largest peak RSS, and the CPU, kernel
+flags and measured peak it ran on. Then the GEMM and 3x3 convolution kernels against OpenBLAS and oneDNN
+(kernels_bench through bench/alternate.sh). What cannot run (no PyTorch, kernels_bench built without
+OpenBLAS/oneDNN) is reported as skipped.
 
 usage: bench/cpu_report.py [--rounds N] [--quick] [--egopd PATH] [--kernels-bench PATH]
   --rounds N   alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
@@ -96,6 +96,7 @@ def main():
         print("cpu_report: PyTorch is not installed (Debian: python3-torch): no PyTorch row", file=sys.stderr)
 
     times = {}
+    rss = {}  # label -> peak resident set of each run, bytes
     shares = {}  # label -> percent_of_peak of each run (direct-fp32-equivalent FLOPs over the peak measured beside it)
     facts = {}
     for r in range(a.rounds):
@@ -106,6 +107,8 @@ def main():
                 env["EGOPD_KERNELS"] = path
             rep = run_json(argv, env)
             times.setdefault(label, []).append(rep["seconds"])
+            if "peak_rss_bytes" in rep:
+                rss.setdefault(label, []).append(rep["peak_rss_bytes"])
             if "percent_of_peak" in rep:
                 shares.setdefault(label, []).append(rep["percent_of_peak"])
             if path:  # egopd's report: the CPU, and per path its flags and measured FP32 peak
@@ -118,8 +121,8 @@ def main():
           + ", ".join(f"{p} ({f}; {min(facts['peak'][p]):.0f}-{max(facts['peak'][p]):.0f} GFLOP/s)"
                       for p, f in facts["flags"].items()) + f"; default {default}")
     print(f"{a.rounds} alternating rounds, {frames} frames of {size}x{size}\n")
-    print("| work | min s | median s | ratio (median) | % of peak (median; direct-fp32-equivalent FLOPs) |")
-    print("|---|---|---|---|---|")
+    print("| work | min s | median s | ratio (median) | % of peak (median; direct-fp32-equivalent FLOPs) | peak RSS |")
+    print("|---|---|---|---|---|---|")
     for label, _, _, base in jobs + ([torch_job] if torch_job else []):
         t = times[label]
         if label.startswith("PyTorch"):
@@ -128,7 +131,8 @@ def main():
         else:
             ratio = f"{statistics.median(times[base]) / statistics.median(t):.2f}x speed of {base}"
         share = f"{statistics.median(shares[label]):.1f}%" if label in shares else "-"
-        print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} | {share} |")
+        mem = f"{max(rss[label]) / 1e9:.2f} GB" if label in rss else "-"
+        print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} | {share} | {mem} |")
 
     kb = a.kernels_bench
     if not os.access(kb, os.X_OK):
