@@ -121,7 +121,7 @@ def main():
           + ", ".join(f"{p} ({f}; {min(facts['peak'][p]):.0f}-{max(facts['peak'][p]):.0f} GFLOP/s)"
                       for p, f in facts["flags"].items()) + f"; default {default}")
     print(f"{a.rounds} alternating rounds, {frames} frames of {size}x{size}\n")
-    print("| work | min s | median s | ratio (median) | % of peak (median; direct-fp32-equivalent FLOPs) | peak RSS |")
+    print("| work | min s | median s | ratio of medians | % of peak (median; direct-fp32-equivalent FLOPs) | peak RSS |")
     print("|---|---|---|---|---|---|")
     for label, _, _, base in jobs + ([torch_job] if torch_job else []):
         t = times[label]
@@ -129,7 +129,11 @@ def main():
             ratio = "1.00 (egopd fp32 " + default + ": " + \
                 f"{statistics.median(times[f'U-Net fp32, {default}']) / statistics.median(t):.2f}x its time)"
         else:
-            ratio = f"{statistics.median(times[base]) / statistics.median(t):.2f}x speed of {base}"
+            # Also the median of the rounds' own ratios: a host that switches between speeds from run to run moves
+            # the two medians apart, while a round's pair ran minutes apart.
+            per_round = statistics.median(b / x for b, x in zip(times[base], t))
+            ratio = (f"{statistics.median(times[base]) / statistics.median(t):.2f}x speed of {base} "
+                     f"(per round: median {per_round:.2f}x)")
         share = f"{statistics.median(shares[label]):.1f}%" if label in shares else "-"
         mem = f"{max(rss[label]) / 1e9:.2f} GB" if label in rss else "-"
         print(f"| {label} | {min(t):.2f} | {statistics.median(t):.2f} | {ratio} | {share} | {mem} |")
