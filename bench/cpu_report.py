@@ -11,9 +11,11 @@ flags and measured peak it ran on. Then the GEMM and 3x3 convolution kernels aga
 (kernels_bench through bench/alternate.sh). What cannot run (no PyTorch, kernels_bench built without
 OpenBLAS/oneDNN) is reported as skipped.
 
-usage: bench/cpu_report.py [--rounds N] [--quick] [--egopd PATH] [--kernels-bench PATH]
-  --rounds N   alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
-  --quick      2 frames of 64x64 and the tiny pipeline: a smoke test of the script (~3 minutes)
+usage: bench/cpu_report.py [--rounds N] [--quick] [--direct-pairs] [--egopd PATH] [--kernels-bench PATH]
+  --rounds N      alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
+  --quick         2 frames of 64x64 and the tiny pipeline: a smoke test of the script (~3 minutes)
+  --direct-pairs  also VAE encode, and VAE encode, VAE decode and the 4-step run with --conv direct on the default
+                  path: the direct rows' ratios are Winograd's gain (about 6 more minutes per round on a Zen 4)
 """
 import argparse
 import json
@@ -54,6 +56,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--direct-pairs", action="store_true")
     ap.add_argument("--egopd", default=os.path.join(ROOT, "build/bin/egopd"))
     ap.add_argument("--kernels-bench", default=os.path.join(ROOT, "build/bin/kernels_bench"))
     ap.add_argument("--threads", type=int, default=os.cpu_count())
@@ -69,6 +72,7 @@ def main():
     unet = [a.egopd, "bench", "unet", "--frames", frames, "--size", size, "--pifr", "--evals", "1",
             "--threads", threads, "--json"]
     vae = [a.egopd, "bench", "vae_decode", "--frames", frames, "--size", size, "--threads", threads, "--json"]
+    vae_encode = [a.egopd, "bench", "vae_encode", "--frames", frames, "--size", size, "--threads", threads, "--json"]
     pipe = [a.egopd, "bench", "pipeline", "--steps", "4", "--threads", threads, "--json"]
     if a.quick:
         pipe[3:3] = ["--config", "tiny", "--frames", frames, "--size", size]
@@ -87,6 +91,11 @@ def main():
         jobs.append((f"VAE decode, {path}", vae, path, f"VAE decode, {default}"))
     for path in paths:
         jobs.append((f"4-step run, {path}", pipe, path, f"4-step run, {default}"))
+    if a.direct_pairs:  # what Winograd (--conv auto) gains over the direct convolutions, stage by stage
+        jobs.append((f"VAE encode, {default}", vae_encode, default, f"VAE encode, {default}"))
+        for what, argv in (("VAE encode", vae_encode), ("VAE decode", vae), ("4-step run", pipe)):
+            jobs.append((f"{what} --conv direct, {default}", argv + ["--conv", "direct"], default,
+                         f"{what}, {default}"))
     torch_job = None
     try:
         import torch  # noqa: F401  (only whether it is installed)
