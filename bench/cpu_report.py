@@ -69,13 +69,14 @@ def main():
     frames, size = ("2", "64") if a.quick else ("16", "256")
     threads = str(a.threads)
     paths, default = kernel_paths(a.egopd)
-    unet = [a.egopd, "bench", "unet", "--frames", frames, "--size", size, "--pifr", "--evals", "1",
-            "--threads", threads, "--json"]
-    vae = [a.egopd, "bench", "vae_decode", "--frames", frames, "--size", size, "--threads", threads, "--json"]
-    vae_encode = [a.egopd, "bench", "vae_encode", "--frames", frames, "--size", size, "--threads", threads, "--json"]
-    pipe = [a.egopd, "bench", "pipeline", "--steps", "4", "--threads", threads, "--json"]
-    if a.quick:
-        pipe[3:3] = ["--config", "tiny", "--frames", frames, "--size", size]
+    def bench(target, *options):
+        return [a.egopd, "bench", target, *options, "--threads", threads, "--json"]
+
+    clip = ("--frames", frames, "--size", size)
+    unet = bench("unet", *clip, "--pifr", "--evals", "1")
+    vae = bench("vae_decode", *clip)
+    vae_encode = bench("vae_encode", *clip)
+    pipe = bench("pipeline", "--steps", "4", *(("--config", "tiny") + clip if a.quick else ()))
 
     # (label, argv, EGOPD_KERNELS or None, baseline label)
     jobs = []
