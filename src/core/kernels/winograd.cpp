@@ -278,7 +278,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
                                                 : precision() == Precision::Int8 ? wino_detail::OperandRounding::Int8
                                                                                  : wino_detail::OperandRounding::None;
   const wino_detail::InputPanelFn input_panel = kern.input[int(rounding)][ti];
-  const wino_detail::FilterFn filter_rows = kern.filter[int(rounding)][ti];
+  const wino_detail::FilterFn filter_rows = kern.filter[ti];
   const bool int8 = rounding == wino_detail::OperandRounding::Int8 && cin > 0;
   const Int8Scales q8 = int8 ? int8_scales(x, n, h * w, cin, weight, cout, MR) : Int8Scales{};
   const wino_detail::InputQuant input_quant = q8.input();
@@ -319,6 +319,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
         path.pack_a(weight.element((o * cin + c0) * 9), weight.dtype, cin * 9, false,
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
         if (int8) kern.round_taps_i8(g, c0 * 9, len * 9, q8.taps(o));
+        if (rounding == wino_detail::OperandRounding::Bf16) kern.round_taps_bf16(g, len * 9 * MR);
         for (int c = 0; c < len; ++c) filter_rows(g + c * 9 * MR, dst + c * MR, u_xi);
       }
   };

@@ -59,9 +59,12 @@ struct OutputEpilogue {
 using OutputPanelFn = void (*)(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep);
 
 // Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
-// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. Under
-// OperandRounding::Bf16 the taps are rounded as they are loaded; int8 taps come quantised (RoundTapsFn).
+// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. The taps
+// come rounded (RoundTapsBf16Fn, RoundTapsFn).
 using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride);
+
+// n taps rounded to bfloat16 in place (OperandRounding::Bf16), on whole vectors.
+using RoundTapsBf16Fn = void (*)(float* g, int64_t n);
 
 // Int8 weights of R output channels (lanes): scale rows of `ld` floats, one per quantisation group of `group` taps,
 // already offset to the first lane's output channel.
@@ -80,7 +83,8 @@ struct WinogradKernels {
   int rows = 6;    // R, the MR of the path's GEMM
   InputPanelFn input[kRoundings][2] = {};
   OutputPanelFn output[2] = {};
-  FilterFn filter[kRoundings][2] = {};  // [Int8]: the float32 transform (the taps come rounded)
+  FilterFn filter[2] = {};  // float32 (the taps come rounded)
+  RoundTapsBf16Fn round_taps_bf16 = nullptr;
   RoundTapsFn round_taps_i8 = nullptr;
 };
 const WinogradKernels& winograd_kernels(KernelPath p);

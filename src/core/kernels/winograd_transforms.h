@@ -101,7 +101,7 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
   // A row de-interleaved: ph[k][i] = its column M*i + k (rounded), so tile i's column s is ph[s % M][i + s / M] and
   // the row transform reads whole vectors.
   alignas(64) float ph[M][L + 1] = {};
-  alignas(64) float rq[M * L + 2];  // Int8: a row segment quantised
+  alignas(64) float rq[M * L + 2];  // Bf16, Int8: a row segment rounded or quantised
   const int covered = pg.nseg ? pg.seg[pg.nseg - 1].j1 : 0;
   if (covered < L)
     for (int r = 0; r < A; ++r)
@@ -122,17 +122,21 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
         }
         const int64_t ix0 = s.tx0 * M - 1;
         const float* const row = xc + iy * w;
-        if constexpr (Rounding == OperandRounding::Int8) {
-          // Int8: the segment's columns [ix0, ix0 + span) quantised on whole vectors into rq first (zeros outside
-          // the frame; the gather's single-float loads lie inside rq's vector stores, so they forward), rather
-          // than each value with its two scales as it is gathered.
-          const float* const inv = q->inv + qc + iy * w;
-          const float* const scale = q->scale + qc + iy * w;
+        if constexpr (Rounding != OperandRounding::None) {
+          // The segment's columns [ix0, ix0 + span) rounded or quantised on whole vectors into rq first (zeros
+          // outside the frame; the gather's single-float loads lie inside rq's vector stores, so they forward),
+          // rather than each value (with its two int8 scales) as it is gathered.
           const int64_t span = M * nl + 2, lo = std::max<int64_t>(0, -ix0);
           const int64_t hi = std::clamp<int64_t>(w - ix0, lo, span);
           for (int64_t j = 0; j < lo; ++j) rq[j] = 0.0f;
-          for (int64_t j = lo; j < hi; ++j)
-            rq[j] = rounded_operand<Rounding>(row[ix0 + j], inv[ix0 + j], scale[ix0 + j]);
+          if constexpr (Rounding == OperandRounding::Int8) {
+            const float* const inv = q->inv + qc + iy * w;
+            const float* const scale = q->scale + qc + iy * w;
+            for (int64_t j = lo; j < hi; ++j)
+              rq[j] = rounded_operand<Rounding>(row[ix0 + j], inv[ix0 + j], scale[ix0 + j]);
+          } else {
+            for (int64_t j = lo; j < hi; ++j) rq[j] = rounded_operand<Rounding>(row[ix0 + j], 0.0f, 0.0f);
+          }
           for (int64_t j = hi; j < span; ++j) rq[j] = 0.0f;
           for (int i = 0; i < nl; ++i)
             for (int k = 0; k < M; ++k) ph[k][i] = rq[M * i + k];
@@ -142,11 +146,10 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
           // The row is read in place; only the tiles that reach past an edge read through a bounds check (copying
           // every row cost about a tenth of a 128-channel 256x256 convolution, copying the edge rows a twentieth:
           // at 256 columns every row segment touches an edge). Tiles [i_lo, i_hi) lie inside the frame: columns
-          // ix0 + M i .. ix0 + M i + M - 1 in [0, w). Bf16 rounds each value as it is gathered (a separate pass
-          // over ph would load whole vectors that the gather's single-float stores cannot forward to).
+          // ix0 + M i .. ix0 + M i + M - 1 in [0, w).
           const int i_lo = ix0 < 0 ? 1 : 0;
           const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-          const auto value = [&](int64_t col) { return rounded_operand<Rounding>(row[col], 0.0f, 0.0f); };
+          const auto value = [&](int64_t col) { return row[col]; };
           const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
           for (int i = 0; i < i_lo; ++i)
             for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
@@ -218,15 +221,12 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
   }
 }
 
-// Rounding (gemm.h, Precision): the taps are rounded to bfloat16 first, as the direct convolution rounds its weights
-// (int8 taps come quantised: round_taps_i8).
-template <int M, int R, OperandRounding Rounding>
+// The taps come rounded as the direct convolution rounds its weights (round_taps_bf16, round_taps_i8).
+template <int M, int R>
 void filter_rows(const float* g, float* u, int64_t xi_stride) {
-  static_assert(Rounding != OperandRounding::Int8);
   constexpr int A = Transform<M>::A;
   alignas(64) float ut[A * A][R];
-  // Rounded where the transform loads each tap (a rounded copy first stalled the transform's loads on its stores).
-  const auto tap = [&](int t, int j) { return rounded_operand<Rounding>(g[t * R + j], 0.0f, 0.0f); };
+  const auto tap = [&](int t, int j) { return g[t * R + j]; };
   for (int j = 0; j < R; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
@@ -241,6 +241,13 @@ void filter_rows(const float* g, float* u, int64_t xi_stride) {
     }
   }
   for (int xi = 0; xi < A * A; ++xi) std::copy_n(ut[xi], R, u + xi * xi_stride);
+}
+
+// Bf16: the taps of a whole item rounded in one vectorised pass before their transforms (rounding each tap as the
+// transform loaded it made the bf16 filter transform 1.3-1.8x the float32 one: perf, AMD EPYC Zen 4). The pass
+// ends long before the transforms read its first values back, so its vector stores do not stall their loads.
+inline void round_taps_bf16(float* g, int64_t n) {
+  for (int64_t i = 0; i < n; ++i) g[i] = rounded_to_bf16(g[i]);
 }
 
 // The taps of a whole item (up to L input channels) quantised in one vectorised pass before their transforms, rather
@@ -272,9 +279,6 @@ template <int L, int R, OperandRounding Rounding>
 void set_rounding(WinogradKernels& k) {
   k.input[int(Rounding)][0] = input_panel<2, L, Rounding>;
   k.input[int(Rounding)][1] = input_panel<4, L, Rounding>;
-  constexpr OperandRounding taps = Rounding == OperandRounding::Int8 ? OperandRounding::None : Rounding;
-  k.filter[int(Rounding)][0] = filter_rows<2, R, taps>;
-  k.filter[int(Rounding)][1] = filter_rows<4, R, taps>;
 }
 
 template <int L, int R>
@@ -285,8 +289,11 @@ WinogradKernels make_winograd_kernels() {
   set_rounding<L, R, OperandRounding::None>(k);
   set_rounding<L, R, OperandRounding::Bf16>(k);
   set_rounding<L, R, OperandRounding::Int8>(k);
+  k.filter[0] = filter_rows<2, R>;
+  k.filter[1] = filter_rows<4, R>;
   k.output[0] = output_panel<2, L>;
   k.output[1] = output_panel<4, L>;
+  k.round_taps_bf16 = round_taps_bf16;
   k.round_taps_i8 = round_taps_i8<R>;
   return k;
 }
