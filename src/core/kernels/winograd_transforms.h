@@ -221,13 +221,17 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
   }
 }
 
-// The taps come rounded as the direct convolution rounds its weights (round_taps_bf16, round_taps_i8).
-template <int M, int R>
+// The taps come rounded as the direct convolution rounds its weights (round_taps_bf16, round_taps_i8). The lane loop
+// runs over RP >= R lanes (a whole number of vectors: 12 lanes took a ymm and an xmm per operation on the avx512
+// path, 16 take one zmm), reading up to RP - R floats past the channel's taps (the caller's buffer has them) into
+// lanes that are never stored.
+template <int M, int R, int RP>
 void filter_rows(const float* g, float* u, int64_t xi_stride) {
+  static_assert(RP >= R && RP - R <= kFilterOverread);
   constexpr int A = Transform<M>::A;
-  alignas(64) float ut[A * A][R];
+  alignas(64) float ut[A * A][RP];
   const auto tap = [&](int t, int j) { return g[t * R + j]; };
-  for (int j = 0; j < R; ++j) {
+  for (int j = 0; j < RP; ++j) {
     float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
     for (int p = 0; p < 3; ++p) {
       const float row[3] = {tap(p * 3, j), tap(p * 3 + 1, j), tap(p * 3 + 2, j)};
@@ -289,8 +293,9 @@ WinogradKernels make_winograd_kernels() {
   set_rounding<L, R, OperandRounding::None>(k);
   set_rounding<L, R, OperandRounding::Bf16>(k);
   set_rounding<L, R, OperandRounding::Int8>(k);
-  k.filter[0] = filter_rows<2, R>;
-  k.filter[1] = filter_rows<4, R>;
+  constexpr int RP = (R + 7) / 8 * 8;
+  k.filter[0] = filter_rows<2, R, RP>;
+  k.filter[1] = filter_rows<4, R, RP>;
   k.output[0] = output_panel<2, L>;
   k.output[1] = output_panel<4, L>;
   k.round_taps_bf16 = round_taps_bf16;
