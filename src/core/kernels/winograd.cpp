@@ -304,6 +304,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   // lanes over input channels instead needs a transpose of all 36 or 16 transformed positions, not of the 9 taps.)
   const auto filter_phase = [&](int64_t cb) {
     const int64_t o0 = cb * co;
+    // Zeroed once: the filter transform's spare lanes read up to kFilterOverread floats past the last channel.
     alignas(64) float g[9 * wino_detail::kMaxLanes * wino_detail::kMaxRows + wino_detail::kFilterOverread] = {};
 #pragma omp for collapse(2) schedule(static)
     for (int64_t op = 0; op < co / MR; ++op)

@@ -149,12 +149,11 @@ void input_panel(const float* x, int64_t cin, const PanelGeom& pg, int64_t c0, i
           // ix0 + M i .. ix0 + M i + M - 1 in [0, w).
           const int i_lo = ix0 < 0 ? 1 : 0;
           const int i_hi = int(std::clamp<int64_t>((w - ix0) / M, i_lo, nl));
-          const auto value = [&](int64_t col) { return row[col]; };
-          const auto at = [&](int64_t col) { return col >= 0 && col < w ? value(col) : 0.0f; };
+          const auto at = [&](int64_t col) { return col >= 0 && col < w ? row[col] : 0.0f; };
           for (int i = 0; i < i_lo; ++i)
             for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
           for (int i = i_lo; i < i_hi; ++i)
-            for (int k = 0; k < M; ++k) ph[k][i] = value(ix0 + M * i + k);
+            for (int k = 0; k < M; ++k) ph[k][i] = row[ix0 + M * i + k];
           for (int i = i_hi; i < nl; ++i)
             for (int k = 0; k < M; ++k) ph[k][i] = at(ix0 + M * i + k);
           ph[0][nl] = at(ix0 + M * nl);
