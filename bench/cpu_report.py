@@ -97,13 +97,15 @@ def main():
         for what, argv in (("VAE encode", vae_encode), ("VAE decode", vae), ("4-step run", pipe)):
             jobs.append((f"{what} --conv direct, {default}", argv + ["--conv", "direct"], default,
                          f"{what}, {default}"))
+    # Asked of the interpreter that runs the PyTorch job, not of this one (python3 may be another installation).
+    torch_python = "/usr/bin/python3"
     torch_job = None
-    try:
-        import torch  # noqa: F401  (only whether it is installed)
-        torch_job = ("PyTorch U-Net fp32", ["/usr/bin/python3", os.path.join(ROOT, "bench/pytorch/bench.py"), "unet",
+    if subprocess.run([torch_python, "-c", "import torch"], capture_output=True).returncode == 0:
+        torch_job = ("PyTorch U-Net fp32", [torch_python, os.path.join(ROOT, "bench/pytorch/bench.py"), "unet",
                      "--frames", frames, "--size", size, "--pifr", "--threads", threads, "--repeat", "1"], None, None)
-    except ImportError:
-        print("cpu_report: PyTorch is not installed (Debian: python3-torch): no PyTorch row", file=sys.stderr)
+    else:
+        print(f"cpu_report: {torch_python} cannot import torch (Debian: python3-torch): no PyTorch row",
+              file=sys.stderr)
 
     times = {}
     rss = {}  # label -> peak resident set of each run, bytes
