@@ -300,7 +300,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
 
   // One item: the MR output channels of one A panel times up to L input channels. The path's A packer converts and
   // transposes their weights, g[(c*9 + t)*MR + i] = w(o + i, c0 + c, t) (rows past cout zero); each input channel
-  // is then transformed with lanes over the MR output channels, straight into U's packed panel. (Transforming with
+  // is then transformed with lanes over the MR output channels into U's packed panel (filter_rows). (Transforming with
   // lanes over input channels instead needs a transpose of all 36 or 16 transformed positions, not of the 9 taps.)
   const auto filter_phase = [&](int64_t cb) {
     const int64_t o0 = cb * co;
@@ -321,7 +321,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
                     weight.dtype == DType::I8 ? weight.scale + o : nullptr, rows, len * 9, g);
         if (int8) kern.round_taps_i8(g, c0 * 9, len * 9, q8.taps(o));
         if (rounding == wino_detail::OperandRounding::Bf16) kern.round_taps_bf16(g, len * 9 * MR);
-        for (int c = 0; c < len; ++c) filter_rows(g + c * 9 * MR, dst + c * MR, u_xi);
+        filter_rows(g, len, dst, u_xi);
       }
   };
 

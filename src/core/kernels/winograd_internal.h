@@ -58,10 +58,11 @@ struct OutputEpilogue {
 // Output transform of one output channel of one panel: src[xi*xi_stride + j] is M[xi] of tile j.
 using OutputPanelFn = void (*)(const float* src, int64_t xi_stride, const PanelGeom& pg, const OutputEpilogue& ep);
 
-// Filter transform of R output channels (lanes) of one input channel: g[t*R + i] (tap t = ky*3 + kx) ->
-// u[xi*xi_stride + i] = G g Gᵀ, R = the MR of the path's GEMM, so that u is a run of U's packed panels. The taps
-// come rounded (RoundTapsBf16Fn, RoundTapsFn); g is read up to kFilterOverread floats past its 9 R taps.
-using FilterFn = void (*)(const float* g, float* u, int64_t xi_stride);
+// Filter transform of R output channels (lanes) of `channels` (<= kMaxLanes) input channels c:
+// g[(c*9 + t)*R + i] (tap t = ky*3 + kx) -> u[xi*xi_stride + c*R + i] = G g_c Gᵀ, R = the MR of the path's GEMM, so
+// that u is a run of U's packed panels. The taps come rounded (RoundTapsBf16Fn, RoundTapsFn); g is read up to
+// kFilterOverread floats past its channels * 9 * R taps.
+using FilterFn = void (*)(const float* g, int channels, float* u, int64_t xi_stride);
 constexpr int kFilterOverread = 8;
 
 // n taps rounded to bfloat16 in place (OperandRounding::Bf16), on whole vectors.

@@ -225,25 +225,35 @@ void output_panel(const float* src, int64_t xi_stride, const PanelGeom& pg, cons
 // path, 16 take one zmm), reading up to RP - R floats past the channel's taps (the caller's buffer has them) into
 // lanes that are never stored.
 template <int M, int R, int RP>
-void filter_rows(const float* g, float* u, int64_t xi_stride) {
+void filter_rows(const float* g, int channels, float* u, int64_t xi_stride) {
   static_assert(RP >= R && RP - R <= kFilterOverread);
   constexpr int A = Transform<M>::A;
-  alignas(64) float ut[A * A][RP];
-  const auto tap = [&](int t, int j) { return g[t * R + j]; };
-  for (int j = 0; j < RP; ++j) {
-    float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
-    for (int p = 0; p < 3; ++p) {
-      const float row[3] = {tap(p * 3, j), tap(p * 3 + 1, j), tap(p * 3 + 2, j)};
-      Transform<M>::g(row, t[p]);
+  // Channels staged in groups, then each tile position's run written out whole: storing each channel's R floats to
+  // all A*A positions in turn kept A*A partial-line store streams open, and their misses stalled the transform (bench
+  // conv2d 1280->1280 on 16 x 8x8, AMD EPYC Zen 4: 1.2-1.3x faster). A group's stage stays within 16 KiB of L1.
+  // Channel c's spare lanes land on channel c + 1's, which its own stores then overwrite.
+  constexpr int G = std::clamp(16384 / (A * A * R * 4) / 4 * 4, 4, kMaxLanes);
+  alignas(64) float ut[A * A][G * R + RP];
+  for (int c0 = 0; c0 < channels; c0 += G) {
+    const int gc = std::min(G, channels - c0);
+    for (int c = 0; c < gc; ++c) {
+      const float* const gt = g + (c0 + c) * 9 * R;
+      for (int j = 0; j < RP; ++j) {
+        float t[3][A];  // t[p][l] = (g_p Gᵀ)_l, g_p row p of the 3x3 kernel
+        for (int p = 0; p < 3; ++p) {
+          const float row[3] = {gt[(p * 3) * R + j], gt[(p * 3 + 1) * R + j], gt[(p * 3 + 2) * R + j]};
+          Transform<M>::g(row, t[p]);
+        }
+        for (int l = 0; l < A; ++l) {
+          const float col[3] = {t[0][l], t[1][l], t[2][l]};
+          float v[A];
+          Transform<M>::g(col, v);
+          for (int k = 0; k < A; ++k) ut[k * A + l][c * R + j] = v[k];
+        }
+      }
     }
-    for (int l = 0; l < A; ++l) {
-      const float col[3] = {t[0][l], t[1][l], t[2][l]};
-      float v[A];
-      Transform<M>::g(col, v);
-      for (int k = 0; k < A; ++k) ut[k * A + l][j] = v[k];
-    }
+    for (int xi = 0; xi < A * A; ++xi) std::copy_n(ut[xi], gc * R, u + xi * xi_stride + c0 * R);
   }
-  for (int xi = 0; xi < A * A; ++xi) std::copy_n(ut[xi], R, u + xi * xi_stride);
 }
 
 // Bf16: the taps of a whole item rounded in one vectorised pass before their transforms (rounding each tap as the
