@@ -498,12 +498,17 @@ TEST_P(WinogradTest, Conv2dDispatch) {
   EXPECT_FALSE(winograd_wins(3, 128, 16, 256, 256));  // the VAE's 3-channel output: direct
   EXPECT_FALSE(winograd_wins(1280, 1280, 4, 8, 8));    // 8x8 frames, few of them: direct
   EXPECT_TRUE(winograd_wins(1280, 1280, 8, 8, 8));
-  // 4x4 frames (F(2x2)): the path's number of pixels in all needed (1024, 256 on avx2).
-  const int64_t f2_pixels = gemm_detail::gemm_path().winograd_f2_min_pixels;
-  EXPECT_EQ(f2_pixels, GetParam() == KernelPath::Avx2 ? 256 : 1024);
-  EXPECT_FALSE(winograd_wins(1280, 1280, f2_pixels / 16 - 1, 4, 4));
-  EXPECT_TRUE(winograd_wins(1280, 1280, f2_pixels / 16, 4, 4));
-  EXPECT_TRUE(winograd_wins(1280, 1280, 64, 4, 4));
+  // 4x4 frames (F(2x2)): the path's number of pixels in all needed (float32: 256 on avx2 and avx512, else 1024;
+  // bf16: 1024 where vdpbf16ps runs the direct convolution, else as float32).
+  const bool x86 = GetParam() == KernelPath::Avx2 || GetParam() == KernelPath::Avx512;
+  const bool native_bf16 = GetParam() == KernelPath::Avx512 && cpu_info().avx512_bf16;
+  for (Precision p : {Precision::Fp32, Precision::Bf16}) {
+    const test::PrecisionGuard guard(p);
+    const int64_t f2_pixels = x86 && !(p == Precision::Bf16 && native_bf16) ? 256 : 1024;
+    EXPECT_FALSE(winograd_wins(1280, 1280, f2_pixels / 16 - 1, 4, 4)) << precision_name(p);
+    EXPECT_TRUE(winograd_wins(1280, 1280, f2_pixels / 16, 4, 4)) << precision_name(p);
+    EXPECT_TRUE(winograd_wins(1280, 1280, 64, 4, 4)) << precision_name(p);
+  }
   EXPECT_TRUE(winograd_wins(512, 512, 1, 64, 64));
   EXPECT_EQ(winograd_tile_for(4, 4), WinogradTile::F2x2);
   EXPECT_EQ(winograd_tile_for(3, 40), WinogradTile::F2x2);

@@ -105,10 +105,10 @@ struct GemmPath {
   MicroKernel micro_i8 = nullptr;
   const char* i8_kernel = "emulated";
   // Under --conv auto, Winograd F(2x2) (frames under 8 pixels, winograd.cpp) runs on calls of at least this many
-  // pixels over all frames: below, its per-call filter transform is not paid back. 1024 where the direct convolution
-  // packs several 4x4 frames into one B panel (NR >= 32) and is twice as fast on them; 256 on AVX2, where a 4x4 frame
-  // fills a 16-column panel by itself.
+  // pixels over all frames: below, its per-call filter transform is not paid back. Under bf16 the second threshold:
+  // Winograd's products stay float32, so where vdpbf16ps doubles the direct convolution's rate 4x4 frames keep it.
   int64_t winograd_f2_min_pixels = 1024;
+  int64_t winograd_f2_min_pixels_bf16 = 1024;
   // Under Int8 and --conv auto, 3x3 convolutions take Winograd on quantised operands (winograd.h) where Winograd
   // wins in float32 and the frames are at least this wide and high (conv.cpp). Only where it beats the int8 direct
   // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and

@@ -112,7 +112,7 @@ const GemmPath& gemm_path(KernelPath which) {
     // F(2x2) against the direct convolution, 1280 -> 1280 channels, float32 (AMD EPYC Zen 3, 2 threads, bench conv2d,
     // three alternating rounds): 16 frames of 4x4 (256 pixels) 0.63x the time (one thread 0.6x, bf16 0.82x, 2560 ->
     // 1280 0.74-0.89x), 16 of 6x6 0.63x, 8 of 4x4 0.8-1.1x, 4 of 4x4 even, 1 of 4x4 2.5x.
-    p.winograd_f2_min_pixels = 256;
+    p.winograd_f2_min_pixels = p.winograd_f2_min_pixels_bf16 = 256;
     // Temporal convolutions: F(2,3) on quantised transforms 0.72-0.83x the time of the int8 direct convolution on the
     // U-Net's and the VAE decoder's layers (AMD EPYC Zen 3, kernels_bench alternating, 128-1280 channels).
     p.i8_temporal_winograd = true;
@@ -125,6 +125,11 @@ const GemmPath& gemm_path(KernelPath which) {
     p.conv3x3_window = conv3x3_window_avx512;
     p.pack_b_temporal_wino = pack_b_temporal_wino_avx512;
     p.temporal_wino_output = temporal_wino_output_avx512;
+    // F(2x2) against the direct convolution on 16 frames of 4x4 (256 pixels), float32 (AMD EPYC Zen 4, 2 threads,
+    // bench conv2d, five alternating rounds, since the filter transform writes whole runs): 1280 -> 1280 0.53-0.92x
+    // the time, 2560 -> 1280 0.91-0.96x; under bf16 (vdpbf16ps) 1.04-1.8x, so there 4x4 frames stay direct.
+    p.winograd_f2_min_pixels = 256;
+    p.winograd_f2_min_pixels_bf16 = cpu_info().avx512_bf16 ? 1024 : 256;
     if (cpu_info().avx512_bf16) {
       p.to_bf16_pairs = to_bf16_pairs_avx512;
       p.micro_bf16 = microkernel_avx512_bf16;
