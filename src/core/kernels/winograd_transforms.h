@@ -230,7 +230,7 @@ void filter_rows(const float* g, int channels, float* u, int64_t xi_stride) {
   constexpr int A = Transform<M>::A;
   // Channels staged in groups, then each tile position's run written out whole: storing each channel's R floats to
   // all A*A positions in turn kept A*A partial-line store streams open, and their misses stalled the transform (bench
-  // conv2d 1280->1280 on 16 x 8x8, AMD EPYC Zen 4: 1.2-1.3x faster). A group's stage stays within 16 KiB of L1.
+  // conv2d 1280->1280 on 16 x 8x8, AMD EPYC Zen 4: 1.07-1.52x faster). A group's stage stays within 16 KiB of L1.
   // Channel c's spare lanes land on channel c + 1's, which its own stores then overwrite.
   constexpr int G = std::clamp(16384 / (A * A * R * 4) / 4 * 4, 4, kMaxLanes);
   alignas(64) float ut[A * A][G * R + RP];
