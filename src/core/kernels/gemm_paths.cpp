@@ -128,9 +128,9 @@ const GemmPath& gemm_path(KernelPath which) {
     // F(2x2) against the direct convolution on 16 frames of 4x4 (256 pixels), float32 (AMD EPYC Zen 4, 2 threads,
     // bench conv2d, five alternating rounds, since the filter transform writes whole runs): 1280 -> 1280 0.53-0.92x
     // the time, 2560 -> 1280 0.91-0.96x; under bf16 (vdpbf16ps) 1.04-1.8x, so there 4x4 frames stay direct.
-    p.winograd_f2_min_pixels = 256;
-    p.winograd_f2_min_pixels_bf16 = cpu_info().avx512_bf16 ? 1024 : 256;
+    p.winograd_f2_min_pixels = p.winograd_f2_min_pixels_bf16 = 256;
     if (cpu_info().avx512_bf16) {
+      p.winograd_f2_min_pixels_bf16 = 1024;
       p.to_bf16_pairs = to_bf16_pairs_avx512;
       p.micro_bf16 = microkernel_avx512_bf16;
       p.pack_a_bf16 = pack_a_bf16_avx512;
