@@ -20,6 +20,7 @@
 
 #include "core/memory.h"
 #include "egopd.h"
+#include "memory_growth.h"
 #include "pipeline/media.h"
 #include "pipeline/synthetic_model.h"
 
@@ -445,11 +446,11 @@ TEST_F(Api, AnotherSizeReloadsTheModel) {
   EXPECT_EQ(predict_csv(o), cli_taxels("--video " + video + " --seed 3"));
 }
 
-// 50 predictions on one model: memory stays flat after the first few (arenas reach their size on the first run).
-// Judged like the batch runner's fifty clips (tests/batch/batch_test.cpp): the heap in use must not grow after a
-// warm-up (leaking one 3 x 64 x 64 float frame per prediction shows up as ~2 MB), and outside AddressSanitizer the
-// resident set neither. Under AddressSanitizer the resident set also holds the quarantine of freed blocks and swings
-// by megabytes from one prediction to the next, so only the heap count (the sanitizer allocator's) is judged there.
+// 50 predictions on one model: memory stays flat after the first few (arenas reach their size on the first run),
+// judged like the batch runner's fifty clips (tests/batch/batch_test.cpp, memory_growth.h): the heap in use must not
+// grow after a warm-up (leaking one 3 x 64 x 64 float frame per prediction shows up as ~2 MB), and outside
+// AddressSanitizer the resident set's floor neither. Under AddressSanitizer the resident set also holds the
+// quarantine of freed blocks, so only the heap count (the sanitizer allocator's) is judged there.
 TEST_F(Api, FiftyPredictionsDoNotGrow) {
   egopd_predict_options o = options();
   use_memory_frames(o);
@@ -469,11 +470,10 @@ TEST_F(Api, FiftyPredictionsDoNotGrow) {
   EXPECT_LT(heap_growth, 512 << 10) << "the heap in use grew by " << heap_growth << " bytes over "
                                     << predictions - warm_up << " predictions";
 #if !EGOPD_ADDRESS_SANITIZER
-  const int64_t growth = rss.back() - rss[warm_up - 1];
-  std::string each;  // one step or a steady climb: says which kind of growth a failure is
-  for (size_t i = warm_up; i < rss.size(); ++i) each += " " + std::to_string(rss[i] - rss[i - 1]);
-  EXPECT_LT(growth, int64_t(4) << 20) << "RSS grew by " << growth << " bytes over " << predictions - warm_up
-                                      << " predictions; per prediction:" << each;
+  const int64_t floor_growth = testing_memory::rss_floor_growth(rss, 10, 40);
+  EXPECT_LT(floor_growth, 3 << 20) << "the resident set's floor grew by " << floor_growth
+                                   << " bytes from predictions 11-20 to 41-50; per prediction from 11:"
+                                   << testing_memory::steps_from(rss, 10);
 #endif
 }
 

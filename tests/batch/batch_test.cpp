@@ -20,6 +20,7 @@
 #include "batch/split_evaluation.h"
 #include "core/error.h"
 #include "core/memory.h"
+#include "memory_growth.h"
 #include "pipeline/media.h"
 #include "pipeline/synthetic_model.h"
 #include "pressure/renderer.h"
@@ -271,22 +272,14 @@ TEST_F(Batch, MemoryStaysFlatOverFiftyClips) {
   const int64_t heap_growth = s.heap_after_clip[49] - s.heap_after_clip[29];
   EXPECT_LT(heap_growth, 384 << 10) << "the heap in use grew by " << heap_growth << " bytes between clip 30 and 50";
 #if !EGOPD_ADDRESS_SANITIZER
-  // Nor does the resident set's floor (a leak outside the heap: mappings, say). The resident set swings by megabytes
-  // from clip to clip with the tests running in parallel (measured: -5.6 / +3.5 / +2.1 MB as the allocator returns
-  // and takes back large blocks) and takes one-time steps (+0.5-1.5 MB, another malloc arena for an OpenMP thread),
-  // so neither its value after one clip nor its median step is a measure: its lowest value over clips 21-30 and
-  // over clips 41-50 is. A leak of 160 KB or more per clip fails (3 MB over twenty clips; 200 KB checked).
+  // Nor does the resident set's floor (a leak outside the heap: mappings, say; memory_growth.h says why the floor). A
+  // leak of 160 KB or more per clip fails (3 MB over twenty clips; 200 KB checked).
   // Under AddressSanitizer the resident set also holds the quarantine of freed blocks (256 MB by default): measured,
   // it swings by 10-30 MB from clip to clip, so its floor says nothing about leaks there.
-  const auto floor_of = [&](size_t first) {
-    return *std::min_element(s.rss_after_clip.begin() + std::ptrdiff_t(first),
-                             s.rss_after_clip.begin() + std::ptrdiff_t(first + 10));
-  };
-  const int64_t floor_growth = floor_of(40) - floor_of(20);
-  std::string each;  // one step or a steady climb: says which kind of growth a failure is
-  for (size_t i = 20; i < 50; ++i) each += " " + std::to_string(s.rss_after_clip[i] - s.rss_after_clip[i - 1]);
+  const int64_t floor_growth = testing_memory::rss_floor_growth(s.rss_after_clip, 20, 40);
   EXPECT_LT(floor_growth, 3 << 20) << "the resident set's floor grew by " << floor_growth
-                                   << " bytes from clips 21-30 to clips 41-50; per clip from clip 21:" << each;
+                                   << " bytes from clips 21-30 to clips 41-50; per clip from clip 21:"
+                                   << testing_memory::steps_from(s.rss_after_clip, 20);
 #endif
 }
 
