@@ -11,6 +11,13 @@ flags and measured peak it ran on. Then the GEMM and 3x3 convolution kernels aga
 (kernels_bench through bench/alternate.sh). What cannot run (no PyTorch, kernels_bench built without
 OpenBLAS/oneDNN) is reported as skipped.
 
+On an AVX-512 CPU the references are also asked for their AVX-512 code, since their defaults may not use it
+(Debian's torch 1.13 runs ATen's AVX2 kernels, and OpenBLAS 0.3.21 does not know Zen 5 and falls back to its
+Haswell kernels): PyTorch gets a second row with ATEN_CPU_CAPABILITY=avx512 and OPENBLAS_CORETYPE=Cooperlake
+(SkylakeX without AVX512-BF16), and the GEMM comparison runs OpenBLAS with that core type. Otherwise OpenBLAS
+chooses its own kernels: a core type or L2 size pinned in the caller's environment (OPENBLAS_CORETYPE,
+OPENBLAS_L2_SIZE) is removed from every reference run, and the report names the core type used.
+
 usage: bench/cpu_report.py [--rounds N] [--quick] [--direct-pairs] [--egopd PATH] [--kernels-bench PATH]
   --rounds N      alternations (default 3; a real-size round takes 10-15 minutes on 2 cores)
   --quick         2 frames of 64x64 and the tiny pipeline: a smoke test of the script (~3 minutes)
@@ -52,6 +59,30 @@ def kernel_paths(egopd):
     return paths, default
 
 
+# A reference run's settings over the caller's environment (None: removed, so that the library chooses itself).
+STOCK_REFERENCE_ENV = {"ATEN_CPU_CAPABILITY": None, "OPENBLAS_CORETYPE": None, "OPENBLAS_L2_SIZE": None}
+
+
+def reference_avx512_env(egopd, default):
+    """The settings that put PyTorch and OpenBLAS on their AVX-512 kernels ({} unless the path is avx512)."""
+    if default != "avx512":
+        return {}
+    version = subprocess.run([egopd, "--version"], capture_output=True, text=True, check=True).stdout
+    core = "Cooperlake" if "bf16: vdpbf16ps" in version else "SkylakeX"
+    return {**STOCK_REFERENCE_ENV, "ATEN_CPU_CAPABILITY": "avx512", "OPENBLAS_CORETYPE": core}
+
+
+def with_settings(env, settings):
+    """env with settings applied (a value of None removes the variable)."""
+    env = dict(env)
+    for k, v in settings.items():
+        if v is None:
+            env.pop(k, None)
+        else:
+            env[k] = v
+    return env
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rounds", type=int, default=3)
@@ -78,31 +109,37 @@ def main():
     vae_encode = bench("vae_encode", *clip)
     pipe = bench("pipeline", "--steps", "4", *(("--config", "tiny") + clip if a.quick else ()))
 
-    # (label, argv, EGOPD_KERNELS or None, baseline label)
+    # (label, argv, EGOPD_KERNELS or None, baseline label, further environment)
     jobs = []
     for path in paths:
-        jobs.append((f"U-Net fp32, {path}", unet, path, f"U-Net fp32, {default}"))
+        jobs.append((f"U-Net fp32, {path}", unet, path, f"U-Net fp32, {default}", {}))
     # The direct convolutions do all the arithmetic the FLOP count assumes: their share of the peak is the kernels'.
     jobs.append((f"U-Net fp32 --conv direct, {default}", unet + ["--conv", "direct"], default,
-                 f"U-Net fp32, {default}"))
+                 f"U-Net fp32, {default}", {}))
     for precision in ("bf16", "int8"):
         jobs.append((f"U-Net {precision}, {default}", unet + ["--precision", precision], default,
-                     f"U-Net fp32, {default}"))
+                     f"U-Net fp32, {default}", {}))
     for path in paths:
-        jobs.append((f"VAE decode, {path}", vae, path, f"VAE decode, {default}"))
+        jobs.append((f"VAE decode, {path}", vae, path, f"VAE decode, {default}", {}))
     for path in paths:
-        jobs.append((f"4-step run, {path}", pipe, path, f"4-step run, {default}"))
+        jobs.append((f"4-step run, {path}", pipe, path, f"4-step run, {default}", {}))
     if a.direct_pairs:  # what Winograd (--conv auto) gains over the direct convolutions, stage by stage
-        jobs.append((f"VAE encode, {default}", vae_encode, default, f"VAE encode, {default}"))
+        jobs.append((f"VAE encode, {default}", vae_encode, default, f"VAE encode, {default}", {}))
         for what, argv in (("VAE encode", vae_encode), ("VAE decode", vae), ("4-step run", pipe)):
             jobs.append((f"{what} --conv direct, {default}", argv + ["--conv", "direct"], default,
-                         f"{what}, {default}"))
+                         f"{what}, {default}", {}))
     # Asked of the interpreter that runs the PyTorch job, not of this one (python3 may be another installation).
     torch_python = "/usr/bin/python3"
-    torch_job = None
+    torch_jobs = []
+    reference_env = reference_avx512_env(a.egopd, default)
     if subprocess.run([torch_python, "-c", "import torch"], capture_output=True).returncode == 0:
-        torch_job = ("PyTorch U-Net fp32", [torch_python, os.path.join(ROOT, "bench/pytorch/bench.py"), "unet",
-                     "--frames", frames, "--size", size, "--pifr", "--threads", threads, "--repeat", "1"], None, None)
+        torch_unet = [torch_python, os.path.join(ROOT, "bench/pytorch/bench.py"), "unet", "--frames", frames,
+                      "--size", size, "--pifr", "--threads", threads, "--repeat", "1"]
+        # The stock row runs without the caller's ATen / OpenBLAS settings, the other with the AVX-512 ones.
+        torch_jobs.append(("PyTorch U-Net fp32", torch_unet, None, None, STOCK_REFERENCE_ENV))
+        if reference_env:
+            torch_jobs.append((f"PyTorch U-Net fp32 (ATen avx512, OpenBLAS {reference_env['OPENBLAS_CORETYPE']})",
+                               torch_unet, None, None, reference_env))
     else:
         print(f"cpu_report: {torch_python} cannot import torch (Debian: python3-torch): no PyTorch row",
               file=sys.stderr)
@@ -112,11 +149,8 @@ def main():
     shares = {}  # label -> percent_of_peak of each run (direct-fp32-equivalent FLOPs over the peak measured beside it)
     facts = {}
     for r in range(a.rounds):
-        for label, argv, path, _ in jobs + ([torch_job] if torch_job else []):
-            env = dict(os.environ)
-            env.pop("EGOPD_KERNELS", None)
-            if path:
-                env["EGOPD_KERNELS"] = path
+        for label, argv, path, _, extra_env in jobs + torch_jobs:
+            env = with_settings(os.environ, {**extra_env, "EGOPD_KERNELS": path})
             rep = run_json(argv, env)
             times.setdefault(label, []).append(rep["seconds"])
             if "peak_rss_bytes" in rep:
@@ -135,7 +169,7 @@ def main():
     print(f"{a.rounds} alternating rounds, {frames} frames of {size}x{size}\n")
     print("| work | min s | median s | ratio of medians | % of peak (median; direct-fp32-equivalent FLOPs) | peak RSS |")
     print("|---|---|---|---|---|---|")
-    for label, _, _, base in jobs + ([torch_job] if torch_job else []):
+    for label, _, _, base, _ in jobs + torch_jobs:
         t = times[label]
         if label.startswith("PyTorch"):
             ratio = "1.00 (egopd fp32 " + default + ": " + \
@@ -165,15 +199,17 @@ def main():
         if f"BM_{needed}" not in listed:
             print(f"\n{what}: skipped ({kb} was built without {needed})")
             continue
-        env = dict(os.environ, EGOPD_CONV="direct")
+        env = with_settings(os.environ, {**(reference_env or STOCK_REFERENCE_ENV), "EGOPD_CONV": "direct"})
         out = subprocess.run([os.path.join(ROOT, "bench/alternate.sh"), str(a.rounds), pattern, kb], env=env,
                              capture_output=True, text=True, check=True).stdout
         median = {}
         for line in out.splitlines():  # NAME BINARY min X median Y UNIT (n=R)
             f = line.split()
             median[f[0]] = (float(f[3]), float(f[5]), f[6])
-        print(f"\n{what} against {needed} ({os.path.basename(kb)}, {a.rounds} alternating rounds; ratio of medians, "
-              f"> 1: egopd faster)\n")
+        core = f", OPENBLAS_CORETYPE={env.get('OPENBLAS_CORETYPE', 'unset: its own choice')}" \
+            if needed == "openblas" else ""
+        print(f"\n{what} against {needed} ({os.path.basename(kb)}{core}, {a.rounds} alternating rounds; ratio of "
+              f"medians, > 1: egopd faster)\n")
         print(f"| shape | egopd min / median | {needed} min / median | ratio |")
         print("|---|---|---|---|")
         for name, (lo, med, unit) in sorted(median.items()):
