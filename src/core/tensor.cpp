@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <new>
 
+#include "core/block_pool.h"
 #include "core/error.h"
 #include "core/kernels/elementwise.h"
 
@@ -41,10 +42,16 @@ std::string shape_string(const std::vector<int64_t>& dims) {
 std::string Shape::str() const { return shape_string(vec()); }
 
 std::shared_ptr<float[]> alloc_floats(size_t n) {
-  size_t bytes = std::max<size_t>(64, (n * sizeof(float) + 63) / 64 * 64);
-  void* p = std::aligned_alloc(64, bytes);
-  if (!p) throw Error("out of memory allocating " + std::to_string(bytes) + " bytes");
-  return std::shared_ptr<float[]>(static_cast<float*>(p), [](float* q) { std::free(q); });
+  size_t bytes = n * sizeof(float);
+  float* p = static_cast<float*>(pooled_alloc(bytes));
+  return std::shared_ptr<float[]>(p, [bytes](float* q) { pooled_free(q, bytes); });
+}
+
+// Arena chunks live as long as their arena, which reuses them itself: they bypass the block cache, so that
+// shrink_to_peak() gives the old chunks back to the system.
+static std::shared_ptr<float[]> alloc_chunk(size_t n) {
+  const size_t bytes = std::max<size_t>(64, (n * sizeof(float) + 63) / 64 * 64);
+  return std::shared_ptr<float[]>(static_cast<float*>(aligned_alloc_checked(bytes)), [](float* q) { std::free(q); });
 }
 
 Tensor::Tensor(const Shape& shape) : shape_(shape) {
@@ -92,7 +99,7 @@ Tensor Tensor::clone() const {
 // ---------------------------------------------------------------- Arena
 
 Arena::Arena(size_t initial_floats) {
-  if (initial_floats) chunks_.push_back({alloc_floats(initial_floats), 0, initial_floats});
+  if (initial_floats) chunks_.push_back({alloc_chunk(initial_floats), 0, initial_floats});
 }
 
 static size_t round16(size_t n) { return (n + 15) / 16 * 16; }  // keep every block 64-byte aligned
@@ -115,7 +122,7 @@ Tensor Arena::take(const Shape& shape) {
     size_t end = chunks_.empty() ? 0 : chunks_.back().begin + chunks_.back().size;
     if (used_ >= end) {
       size_t grow = std::max(n, end / 2 + (size_t(1) << 20));
-      chunks_.push_back({alloc_floats(grow), end, grow});
+      chunks_.push_back({alloc_chunk(grow), end, grow});
       used_ = end;
     }
   }
@@ -130,7 +137,7 @@ void Arena::shrink_to_peak() {
   EGOPD_CHECK(used_ == 0, "arena shrink while blocks are taken");
   if (peak_ == 0 || (chunks_.size() == 1 && chunks_[0].size == peak_)) return;
   chunks_.clear();  // the old memory goes before the new chunk is allocated
-  chunks_.push_back({alloc_floats(peak_), 0, peak_});
+  chunks_.push_back({alloc_chunk(peak_), 0, peak_});
 }
 
 size_t Arena::capacity_bytes() const {

@@ -33,7 +33,8 @@ class Shape {
 // "[16,320,32,32]": a shape in error messages (also of stored tensors, which may have more than kMaxDims dims).
 std::string shape_string(const std::vector<int64_t>& dims);
 
-// 64-byte aligned float storage. Tensors share it (copying a Tensor is shallow; use clone() for a deep copy).
+// 64-byte aligned float storage, large blocks reused from the cache of freed ones (core/block_pool.h). Tensors share
+// it (copying a Tensor is shallow; use clone() for a deep copy).
 std::shared_ptr<float[]> alloc_floats(size_t n);
 
 class Tensor {

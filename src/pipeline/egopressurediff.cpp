@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "clip_image/svd_preprocess.h"
+#include "core/block_pool.h"
 #include "core/error.h"
 #include "core/finite_check.h"
 #include "core/rng.h"
@@ -52,6 +53,8 @@ EgoPressureDiffPipeline::EgoPressureDiffPipeline(const std::string& model_dir, i
   template_ = HandTemplate::load(template_path.empty() ? default_template_path() : template_path);
   renderer_ = std::make_unique<PressureRenderer>(template_, int(size));
   unet_cfg_ = UNetConfig::load((d / "unet").string());
+  // Process-wide: freed activations are not kept resident for reuse (each first touch then costs a page fault).
+  if (low_mem) set_block_cache_limit(0);
   const fs::path pre = d / "feature_extractor" / "preprocessor_config.json";
   if (fs::exists(pre)) clip_norm_ = ClipImageNormalization::load(pre.string());
   has_text_ = fs::is_directory(d / "text_encoder") && fs::is_directory(d / "tokenizer");

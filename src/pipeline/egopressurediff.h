@@ -61,8 +61,9 @@ class EgoPressureDiffPipeline {
   // CLIP towers in encode() / encode_text(), paging each layer's weights out after it runs; the U-Net for the sampler
   // loop, paging each block's weights out after it runs; the VAE again for the decode, paging each decoder block out
   // after it runs, whose temporal layers then work in small tiles without a whole-clip temporary), so peak memory is
-  // about one component's working set. The results are the same as in normal mode. Loading time then counts in the
-  // "load" stage of each call.
+  // about one component's working set, and the process keeps no freed activation blocks for reuse
+  // (set_block_cache_limit(0)). The results are the same as in normal mode. Loading time then counts in the "load"
+  // stage of each call.
   EgoPressureDiffPipeline(const std::string& model_dir, int64_t size, const std::string& template_path = "",
                           bool low_mem = false);
 

@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "core/block_pool.h"
 #include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/threading.h"
@@ -96,6 +97,19 @@ TEST_F(PipelineModes, LowMemMatchesNormalMode) {
   // Loading happens inside the stages in low-memory mode and is accounted separately.
   EXPECT_TRUE(has_stage(low.times, "load"));
   EXPECT_FALSE(has_stage(normal.times, "load"));
+}
+
+TEST_F(PipelineModes, LowMemKeepsNoFreedActivationsResident) {
+  const size_t saved = block_cache_limit();
+  set_block_cache_limit(size_t(64) << 20);
+  { Tensor freed(Shape{int64_t(1) << 20}); }  // 4 MiB, cached when it goes
+  EXPECT_GT(block_cache_stats().cached_bytes, 0u);
+  EgoPressureDiffPipeline normal((root / "model").string(), kSize, "", false);
+  EXPECT_EQ(block_cache_limit(), size_t(64) << 20);
+  EgoPressureDiffPipeline low((root / "model").string(), kSize, "", true);
+  EXPECT_EQ(block_cache_limit(), 0u);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 0u);
+  set_block_cache_limit(saved);
 }
 
 TEST_F(PipelineModes, LowMemChunkedDecodeMatchesNormalModeWithTheSameChunk) {

@@ -1,0 +1,113 @@
+#include "core/block_pool.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <cstring>
+
+#include "core/tensor.h"
+
+namespace egopd {
+namespace {
+
+constexpr size_t kMiB = size_t(1) << 20;
+
+// Each test sets its own limit (the default is 0 under AddressSanitizer) and leaves an empty cache behind.
+class BlockPoolTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    saved_ = block_cache_limit();
+    set_block_cache_limit(0);  // empty
+    set_block_cache_limit(64 * kMiB);
+  }
+  void TearDown() override {
+    set_block_cache_limit(0);
+    set_block_cache_limit(saved_);
+  }
+  size_t saved_ = 0;
+};
+
+// pooled_alloc with a request of `bytes`; the block's real size in *real
+void* alloc(size_t bytes, size_t* real = nullptr) {
+  void* p = pooled_alloc(bytes);
+  if (real) *real = bytes;
+  return p;
+}
+
+TEST_F(BlockPoolTest, FreedLargeBlockIsHandedOutAgainForTheSameSize) {
+  size_t size = 0;
+  void* a = alloc(3 * kMiB, &size);
+  EXPECT_EQ(size, 3 * kMiB);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(a) % 64, 0u);
+  std::memset(a, 1, size);
+  pooled_free(a, size);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 3 * kMiB);
+  const uint64_t hits = block_cache_stats().hits;
+  void* b = alloc(3 * kMiB - 100, &size);  // rounded up to 64 bytes, then served by the cached block
+  EXPECT_EQ(b, a);
+  EXPECT_EQ(size, 3 * kMiB);
+  EXPECT_EQ(block_cache_stats().hits, hits + 1);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 0u);
+  pooled_free(b, size);
+}
+
+TEST_F(BlockPoolTest, ReusesABlockOnlyUpToAnEighthLarger) {
+  void* a = alloc(8 * kMiB);
+  pooled_free(a, 8 * kMiB);
+  size_t small_size = 0, close_size = 0;
+  void* small = alloc(6 * kMiB, &small_size);  // 8 MiB would waste a quarter: a new block
+  EXPECT_NE(small, a);
+  EXPECT_EQ(small_size, 6 * kMiB);
+  void* close = alloc(7 * kMiB + kMiB / 2, &close_size);  // within an eighth: the cached 8 MiB block
+  EXPECT_EQ(close, a);
+  EXPECT_EQ(close_size, 8 * kMiB);
+  std::memset(close, 2, close_size);
+  pooled_free(small, small_size);
+  pooled_free(close, close_size);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 14 * kMiB);
+  EXPECT_EQ(block_cache_stats().cached_blocks, 2u);
+}
+
+TEST_F(BlockPoolTest, LimitGivesBackTheOldestBlocksFirst) {
+  set_block_cache_limit(10 * kMiB);
+  void* a = alloc(4 * kMiB);
+  void* b = alloc(4 * kMiB + 64);
+  void* c = alloc(4 * kMiB + 128);
+  pooled_free(a, 4 * kMiB);
+  pooled_free(b, 4 * kMiB + 64);
+  pooled_free(c, 4 * kMiB + 128);  // 12 MiB and more over a 10 MiB limit: a, the oldest, goes
+  EXPECT_EQ(block_cache_stats().cached_blocks, 2u);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 8 * kMiB + 192);
+  set_block_cache_limit(5 * kMiB);  // lowering the limit gives back at once: b goes, c stays
+  EXPECT_EQ(block_cache_stats().cached_blocks, 1u);
+  EXPECT_EQ(alloc(4 * kMiB + 128), c);
+  pooled_free(c, 4 * kMiB + 128);
+  set_block_cache_limit(0);
+  EXPECT_EQ(block_cache_stats().cached_bytes, 0u);
+  void* d = alloc(2 * kMiB);  // with a limit of 0 a freed block goes straight back to the system
+  pooled_free(d, 2 * kMiB);
+  EXPECT_EQ(block_cache_stats().cached_blocks, 0u);
+}
+
+TEST_F(BlockPoolTest, SmallBlocksAreNotCached) {
+  size_t size = 0;
+  void* p = alloc(kPooledBlockMinBytes - 64, &size);
+  pooled_free(p, size);
+  EXPECT_EQ(block_cache_stats().cached_blocks, 0u);
+}
+
+TEST_F(BlockPoolTest, TensorsShareTheCache) {
+  const Shape shape{16, 320, 8, 8};  // 1.25 MiB of floats
+  float* first = nullptr;
+  {
+    Tensor t(shape);
+    first = t.data();
+    t[0] = 1.0f;
+  }
+  EXPECT_EQ(block_cache_stats().cached_blocks, 1u);
+  Tensor again(shape);
+  EXPECT_EQ(again.data(), first);
+}
+
+}  // namespace
+}  // namespace egopd
