@@ -1,6 +1,8 @@
 #include "core/block_pool.h"
 
+#include <atomic>
 #include <cstdlib>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <string>
@@ -90,6 +92,8 @@ BlockPool& pool() {
   return *p;
 }
 
+std::atomic<bool> poison_reused{false};
+
 size_t rounded(size_t bytes) { return bytes < 64 ? 64 : (bytes + 63) / 64 * 64; }
 
 }  // namespace
@@ -103,7 +107,10 @@ void* aligned_alloc_checked(size_t bytes) {
 void* pooled_alloc(size_t& bytes) {
   bytes = rounded(bytes);
   if (bytes < kPooledBlockMinBytes) return aligned_alloc_checked(bytes);
-  if (void* p = pool().take(bytes)) return p;
+  if (void* p = pool().take(bytes)) {
+    if (poison_reused.load(std::memory_order_relaxed)) std::memset(p, 0xff, bytes);  // 0xffffffff: a NaN
+    return p;
+  }
   return aligned_alloc_checked(bytes);
 }
 
@@ -117,6 +124,7 @@ void pooled_free(void* p, size_t bytes) {
 
 void set_block_cache_limit(size_t bytes) { pool().set_limit(bytes); }
 size_t block_cache_limit() { return pool().limit(); }
+void set_block_cache_poison(bool on) { poison_reused.store(on); }
 BlockCacheStats block_cache_stats() { return pool().stats(); }
 
 }  // namespace egopd

@@ -25,6 +25,10 @@ void pooled_free(void* p, size_t bytes);
 void set_block_cache_limit(size_t bytes);
 size_t block_cache_limit();
 
+// On: every block handed out again is first filled with NaN bits, so a layer that reads memory it has not written
+// shows it (tests; fresh pages read as zeros and would hide it). Off by default.
+void set_block_cache_poison(bool on);
+
 struct BlockCacheStats {
   size_t cached_bytes = 0, cached_blocks = 0;
   uint64_t hits = 0, misses = 0;  // requests of pooled size served from the cache / by the system

@@ -50,7 +50,9 @@ TEST(Dtype, FloatToHalfIsTheNearestHalf) {
       if ((mag == 0 && step < 0) || (mag == 0x7bff && step > 0)) continue;
       const double dn = std::fabs(a - double(half_to_float(uint16_t(mag + step))));
       ASSERT_LE(d, dn) << f;
-      if (d == dn) ASSERT_EQ(mag & 1u, 0u) << "tie of " << f;
+      if (d == dn) {
+        ASSERT_EQ(mag & 1u, 0u) << "tie of " << f;
+      }
     }
   };
   for (uint32_t bits = 0; bits < 0x477fe000u; bits += 997) {

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/golden.h"
 #include "core/threading.h"
+#include "reused_blocks.h"
 #include "unet3d/unet.h"
 
 namespace egopd {
@@ -200,6 +201,22 @@ TEST(UNetForward, SingleFrameClip) {
                           unet.prepare(c.input("encoder_hidden_states"), nullptr));
   EXPECT_EQ(v.shape(), (Shape{1, 1, 4, 16, 16}));
   for (int64_t i = 0; i < v.numel(); ++i) ASSERT_TRUE(std::isfinite(v[i]));
+}
+
+// Reused activation blocks hold old values: no layer may read memory it has not written. Blocks handed out again are
+// filled with NaN bits (reused_blocks.h); a latent of 48x48 makes the U-Net's tensors large enough to be
+// cached (4 frames x 32 channels: 1.2 MiB, its skip concatenations 2.4 MiB). The result must be bit for bit the
+// one computed in fresh memory.
+TEST(UNetForward, ReusedBlocksAreWrittenBeforeTheyAreRead) {
+  GoldenCase c = load_golden_case(golden("unet"));
+  UNetSpatioTemporal unet(c.model_dir());
+  Tensor s({1, 4, 8, 48, 48});
+  for (int64_t i = 0; i < s.numel(); ++i) s[i] = std::sin(0.37f * float(i % 1013)) - 0.25f;
+  const auto cond = unet.prepare(c.input("encoder_hidden_states"), nullptr);
+  const auto run = testing_memory::run_in_fresh_and_poisoned_blocks(
+      [&] { return unet.forward(s, c.input("timestep")[0], c.input("added_time_ids"), cond); });
+  EXPECT_GT(run.hits, 10u);  // the pass really ran in poisoned blocks
+  EXPECT_EQ(run.differing, 0) << "of " << run.fresh.numel();
 }
 
 // A context of several tokens runs the full cross-attention. Two identical tokens give softmax weights 1/2 on equal

@@ -15,6 +15,7 @@
 #include "core/json_text.h"
 #include "core/safetensors.h"
 #include "core/threading.h"
+#include "reused_blocks.h"
 #include "vae/temporal_vae.h"
 
 namespace egopd {
@@ -186,6 +187,17 @@ TEST(TemporalVae, GoldenEncodeAndDecode) {
     }
   }
   set_num_threads(0);
+}
+
+// Reused activation blocks hold old values (here NaN bits, reused_blocks.h): the decoder must write every
+// block before it reads it. 4 frames of 64x64 x 32 channels make its whole-clip tensors 2 MiB, large enough to be
+// cached. The decoded clip must be bit for bit the one decoded in fresh memory.
+TEST(TemporalVae, DecoderWritesReusedBlocksBeforeReadingThem) {
+  TemporalVAE vae(load_golden_case(golden("vae_decode")).model_dir());
+  const Tensor z = random_tensor(Shape{4, 4, 32, 32}, 11);
+  const auto run = testing_memory::run_in_fresh_and_poisoned_blocks([&] { return vae.decode(z, 4); });
+  EXPECT_GT(run.hits, 3u);  // the decode really ran in poisoned blocks
+  EXPECT_EQ(run.differing, 0) << "of " << run.fresh.numel();
 }
 
 TEST(TemporalVae, EncoderIsPerFrameAndTakesOddSizes) {
