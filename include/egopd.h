@@ -71,6 +71,10 @@ typedef struct egopd_load_options {
   void* log_user;
   const char* conv;          /* 3x3 and temporal convolution algorithm: NULL (EGOPD_CONV, else "auto"),
                                 "direct", "winograd" or "auto" (egopd --help, --conv) */
+  int64_t block_cache_mb;    /* MiB of freed activation blocks kept for reuse while this model computes (set for
+                                each of its calls; the blocks stay cached between calls): -1 (the default):
+                                EGOPD_BLOCK_CACHE_MB, else 1024; 0: none (low_mem models keep none);
+                                at most 1048576 (egopd --help, --block-cache-mb) */
 } egopd_load_options;
 
 EGOPD_API void egopd_load_options_init(egopd_load_options* options);

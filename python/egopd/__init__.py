@@ -56,7 +56,8 @@ _PROGRESS_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.POINTER(_P
 class _LoadOptions(ctypes.Structure):
     _fields_ = [("struct_size", ctypes.c_size_t), ("threads", ctypes.c_int), ("low_mem", ctypes.c_int),
                 ("precision", ctypes.c_char_p), ("size", ctypes.c_int64), ("template_path", ctypes.c_char_p),
-                ("log", _LOG_FN), ("log_user", ctypes.c_void_p), ("conv", ctypes.c_char_p)]
+                ("log", _LOG_FN), ("log_user", ctypes.c_void_p), ("conv", ctypes.c_char_p),
+                ("block_cache_mb", ctypes.c_int64)]
 
 
 class _PredictOptions(ctypes.Structure):
@@ -298,16 +299,19 @@ class Model:
     for (another size in a call reloads it). precision: "fp32", "bf16" or "int8", the arithmetic of the linear
     layers and convolutions in this model's calls (README, `--precision`). conv: "direct", "winograd" or "auto",
     the algorithm of its 3x3 convolutions (README, `--conv`); None: EGOPD_CONV, else "auto". log: a callable
-    receiving the run's log lines (what `egopd predict` prints on stderr); None: quiet."""
+    receiving the run's log lines (what `egopd predict` prints on stderr); None: quiet. block_cache_mb: MiB of
+    freed activation blocks kept for reuse in its calls (README, `--block-cache-mb`); None: EGOPD_BLOCK_CACHE_MB,
+    else 1024; 0: none."""
 
     def __init__(self, path=None, threads=None, low_mem=False, size=256, template=None, precision="fp32", log=None,
-                 conv=None):
+                 conv=None, block_cache_mb=None):
         o = _LoadOptions()
         _lib.egopd_load_options_init(ctypes.byref(o))
         o.threads = threads or 0
         o.low_mem = 1 if low_mem else 0
         o.precision = precision.encode() if precision else None
         o.conv = conv.encode() if conv else None
+        o.block_cache_mb = -1 if block_cache_mb is None else block_cache_mb
         o.size = size
         o.template_path = _path(template)
         self._log = _LOG_FN(lambda _u, line: log(line.decode("utf-8", "replace"))) if log else _LOG_FN()

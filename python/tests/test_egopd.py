@@ -156,6 +156,8 @@ class ModuleTest(unittest.TestCase):
             egopd.Model(precision="fp16")
         with self.assertRaisesRegex(egopd.ArgumentError, "conv 'fft': expected direct, winograd or auto"):
             egopd.Model(conv="fft")
+        with self.assertRaisesRegex(egopd.ArgumentError, "--block-cache-mb must be between 0 and 1048576"):
+            egopd.Model(block_cache_mb=-7)
         with self.assertRaisesRegex(egopd.Error, "/nonexistent/model"):
             egopd.Model("/nonexistent/model")
         self.assertEqual(self.model.predict(num_frames=2).taxels.shape, (2, 162))  # still usable

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <vector>
 
+#include "core/block_pool.h"
 #include "core/json_text.h"
 #include "pipeline/prompt.h"
 
@@ -103,11 +104,20 @@ ConvAlgo load_conv(const egopd_load_options& o) {
   return a;
 }
 
+size_t load_block_cache_bytes(const egopd_load_options& o) {
+  if (o.block_cache_mb == -1) return block_cache_limit_from_env();
+  if (o.block_cache_mb < 0 || o.block_cache_mb > kMaxBlockCacheMb)
+    throw ArgumentError("--block-cache-mb must be between 0 and " + std::to_string(kMaxBlockCacheMb) +
+                        " (or -1: the default), got " + std::to_string(o.block_cache_mb));
+  return size_t(o.block_cache_mb) << 20;
+}
+
 PredictOptions load_predict_options(const char* model_dir, const egopd_load_options& o) {
   if (o.threads < 0 || o.threads > 1024)
     throw ArgumentError("--threads must be between 1 and 1024 (or 0: the default), got " + std::to_string(o.threads));
   load_precision(o);
   load_conv(o);
+  load_block_cache_bytes(o);
   PredictOptions po;
   po.model_dir = str(model_dir);
   po.size = bounded(o.size, 64, 4096, "--size");

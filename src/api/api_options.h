@@ -27,6 +27,8 @@ PredictOptions load_predict_options(const char* model_dir, const egopd_load_opti
 Precision load_precision(const egopd_load_options& o);
 // The 3x3 convolution algorithm of the load options (NULL or "": EGOPD_CONV, else auto).
 ConvAlgo load_conv(const egopd_load_options& o);
+// The block cache limit of the load options in bytes (-1: EGOPD_BLOCK_CACHE_MB, else the default).
+size_t load_block_cache_bytes(const egopd_load_options& o);
 // One call's options over the model's: sampler, steps, seed, frames, size, guidance, paths; range-checked with the
 // egopd predict options' bounds and wording.
 PredictOptions call_predict_options(const PredictOptions& load, const egopd_predict_options& o);

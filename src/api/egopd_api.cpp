@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "api/api_options.h"
+#include "core/block_pool.h"
 #include "core/error.h"
 #include "core/interrupt.h"
 #include "core/threading.h"
@@ -27,6 +28,7 @@ struct egopd_model {
   int threads = 0;
   egopd::Precision precision = egopd::Precision::Fp32;  // set for each of its calls, like threads
   egopd::ConvAlgo conv = egopd::ConvAlgo::Auto;          // likewise
+  size_t block_cache_bytes = 0;                          // likewise
   egopd_log_fn log = nullptr;
   void* log_user = nullptr;
   std::unique_ptr<egopd::PredictModel> model;
@@ -86,6 +88,7 @@ class ComputeScope {
     set_num_threads(m.threads);
     set_precision(m.precision);
     set_conv_algo(m.conv);
+    set_block_cache_limit(m.block_cache_bytes);
   }
   ~ComputeScope() { t_in_call = false; }
   ComputeScope(const ComputeScope&) = delete;
@@ -157,6 +160,7 @@ void egopd_load_options_init(egopd_load_options* o) {
   std::memset(o, 0, sizeof *o);
   o->struct_size = sizeof *o;
   o->size = 256;
+  o->block_cache_mb = -1;
 }
 
 void egopd_predict_options_init(egopd_predict_options* o) {
@@ -175,6 +179,7 @@ egopd_status egopd_model_load(const char* model_dir, const egopd_load_options* o
     m->threads = o.threads;
     m->precision = load_precision(o);
     m->conv = load_conv(o);
+    m->block_cache_bytes = m->load.low_mem ? 0 : load_block_cache_bytes(o);
     m->log = o.log, m->log_user = o.log_user;
     ComputeScope scope(*m);
     m->model = std::make_unique<PredictModel>(m->load, model_hooks(*m));

@@ -5,6 +5,7 @@
 #include <cstdlib>
 
 #include "cli/commands.h"
+#include "core/block_pool.h"
 #include "core/cpu.h"
 #include "core/json_text.h"
 #include "core/kernels/conv.h"
@@ -85,6 +86,7 @@ void print_bench_report(const BenchReport& r, bool json) {
   if (precision() == Precision::Bf16) j["bf16"] = bf16_native() ? "native (vdpbf16ps)" : "emulated";
   if (precision() == Precision::Int8) j["int8"] = int8_kernel();
   j["peak_rss_bytes"] = peak_rss_bytes();
+  j["block_cache_mb"] = block_cache_limit() >> 20;  // at the end of the run (--low-mem sets 0)
   j["version"] = EGOPD_VERSION;
   for (auto it = r.extra.begin(); it != r.extra.end(); ++it) j[it.key()] = it.value();
   if (json) {

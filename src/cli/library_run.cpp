@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "cli/predict_options.h"
+#include "core/block_pool.h"
 #include "core/json_text.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
@@ -77,6 +78,7 @@ int run_with_library(const PredictOptions& o, const VarySpec* vary) {
   lo.threads = num_threads();
   lo.precision = precision_name(precision());  // --precision
   lo.conv = conv_algo_name(conv_algo());       // --conv (or EGOPD_CONV)
+  lo.block_cache_mb = int64_t(block_cache_limit() >> 20);  // --block-cache-mb (or EGOPD_BLOCK_CACHE_MB)
   lo.low_mem = o.low_mem ? 1 : 0;
   lo.size = o.size;
   lo.template_path = c_str_or_null(o.template_path);

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "core/block_pool.h"
 #include "core/cpu.h"
 #include "core/error.h"
 #include "core/kernels/conv.h"
@@ -170,9 +171,14 @@ void print_help() {
       "                products are bfloat16 under bf16 (softmax weights rounded too), float32 under int8. Check\n"
       "                the error on your model against an fp32 run (egopd bench pipeline --save-result /\n"
       "                --compare-to).\n"
+      "  --block-cache-mb N   MiB of freed activation blocks (of 1 MiB and more) kept for reuse instead of being\n"
+      "                given back to the system (predict, counterfactual, batch, bench, forward; default 1024):\n"
+      "                memory fresh from the system costs a page fault per 4 KiB on first use. 0 keeps none (less\n"
+      "                memory, slower on some machines); --low-mem keeps none either.\n"
       "environment:\n"
       "  EGOPD_THREADS   default thread count\n"
       "  EGOPD_CONV      default of --conv\n"
+      "  EGOPD_BLOCK_CACHE_MB   default of --block-cache-mb\n"
       "  EGOPD_KERNELS   kernel path: avx512, avx2 or portable (default: the best this CPU supports;\n"
       "                  EGOPD_PORTABLE=1 is the same as EGOPD_KERNELS=portable)\n");
 }
@@ -208,7 +214,8 @@ int run(int argc, char** argv) {
     if (a.has("threads")) {
       set_num_threads(int(a.get_int("threads", 0, 1, 1024)));
     }
-    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch") && a.has("conv")) {
+    const bool runs_models = name == "predict" || name == "counterfactual" || name == "bench" || name == "batch";
+    if (runs_models && a.has("conv")) {
       const std::string v = a.get("conv", "auto");
       ConvAlgo algo;
       if (!conv_algo_from_name(v, &algo)) throw Error(name + ": --conv '" + v + "': expected direct, winograd or auto");
@@ -216,13 +223,15 @@ int run(int argc, char** argv) {
     }
     // Reduced-precision arithmetic: the commands that run models (forward: to measure its error on the golden cases,
     // whose tolerances are float32's).
-    if ((name == "predict" || name == "counterfactual" || name == "bench" || name == "batch" || name == "forward") &&
-        a.has("precision")) {
+    if ((runs_models || name == "forward") && a.has("precision")) {
       const std::string v = a.get("precision", "fp32");
       Precision p;
       if (!parse_precision(v.c_str(), &p)) throw Error(name + ": --precision '" + v + "': expected fp32, bf16 or int8");
       set_precision(p);
     }
+    if (runs_models || name == "forward")
+      set_block_cache_limit(a.has("block-cache-mb") ? size_t(a.get_int("block-cache-mb", 0, 0, kMaxBlockCacheMb)) << 20
+                                                    : block_cache_limit_from_env());
     return c.run(a);
   }
   throw Error("unknown command '" + name + "' (see egopd --help)");

@@ -1,6 +1,8 @@
 #include "core/block_pool.h"
 
 #include <atomic>
+#include <cctype>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -124,6 +126,19 @@ void pooled_free(void* p, size_t bytes) {
 
 void set_block_cache_limit(size_t bytes) { pool().set_limit(bytes); }
 size_t block_cache_limit() { return pool().limit(); }
+size_t default_block_cache_limit() { return kDefaultLimit; }
+
+size_t block_cache_limit_from_env() {
+  const char* e = std::getenv("EGOPD_BLOCK_CACHE_MB");
+  if (!e || !*e) return kDefaultLimit;
+  char* end = nullptr;
+  errno = 0;
+  const long long mb = std::strtoll(e, &end, 10);
+  if (*end != '\0' || errno != 0 || mb < 0 || mb > kMaxBlockCacheMb || !std::isdigit(static_cast<unsigned char>(*e)))
+    throw Error(std::string("EGOPD_BLOCK_CACHE_MB='") + e + "' is not a size in MiB (0.." +
+                std::to_string(kMaxBlockCacheMb) + ")");
+  return size_t(mb) << 20;
+}
 void set_block_cache_poison(bool on) { poison_reused.store(on); }
 BlockCacheStats block_cache_stats() { return pool().stats(); }
 

@@ -20,10 +20,18 @@ void* aligned_alloc_checked(size_t bytes);
 void* pooled_alloc(size_t& bytes);
 void pooled_free(void* p, size_t bytes);
 
-// The most bytes of freed blocks kept (default 1 GiB; 0 under AddressSanitizer, so it still sees every
-// use after free). Lowering it gives back the oldest blocks at once.
+// The most bytes of freed blocks kept (default_block_cache_limit() until set). Lowering it gives back the oldest
+// blocks at once.
 void set_block_cache_limit(size_t bytes);
 size_t block_cache_limit();
+// 1 GiB; 0 under AddressSanitizer, so that it still sees every use after free.
+size_t default_block_cache_limit();
+
+// The largest limit a user may ask for, in MiB (--block-cache-mb, EGOPD_BLOCK_CACHE_MB, the C API's block_cache_mb).
+constexpr int64_t kMaxBlockCacheMb = int64_t(1) << 20;
+// The limit of a run that names none: EGOPD_BLOCK_CACHE_MB (MiB; 0 keeps no blocks) when set, else the default. An
+// Error naming the variable when it is not a whole number of 0..kMaxBlockCacheMb.
+size_t block_cache_limit_from_env();
 
 // On: every block handed out again is first filled with NaN bits, so a layer that reads memory it has not written
 // shows it (tests; fresh pages read as zeros and would hide it). Off by default.

@@ -18,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/block_pool.h"
 #include "core/memory.h"
 #include "egopd.h"
 #include "memory_growth.h"
@@ -142,17 +143,21 @@ class Api : public ::testing::Test {
     egopd_result_free(r);
     return csv;
   }
-  // The taxels of the frame-folder clip (seed 3) on a model of its own, loaded like the shared one but with
-  // `precision` and `conv`.
-  static std::string own_model_csv(const char* precision, const char* conv) {
+  // A model of a test's own: the shared one's load options (size 64, 2 threads) changed by `adjust`.
+  template <class Adjust>
+  static egopd_model* own_model(Adjust adjust) {
     egopd_load_options lo;
     egopd_load_options_init(&lo);
     lo.size = 64;
     lo.threads = 2;
-    lo.precision = precision;
-    lo.conv = conv;
+    adjust(lo);
     egopd_model* m = nullptr;
     EXPECT_EQ(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_OK) << egopd_last_error();
+    return m;
+  }
+  // The taxels of the frame-folder clip (seed 3) on a model of its own with `precision` and `conv`.
+  static std::string own_model_csv(const char* precision, const char* conv) {
+    egopd_model* const m = own_model([&](egopd_load_options& lo) { lo.precision = precision, lo.conv = conv; });
     if (!m) return "";
     const std::string video = (root / "frames").string();
     egopd_predict_options o = options();
@@ -338,6 +343,13 @@ TEST_F(Api, BadInputIsAnErrorNeverACrash) {
                "conv 'fft': expected direct, winograd or auto");
   EXPECT_EQ(m, nullptr);
   lo.conv = nullptr;
+  for (int64_t mb : {int64_t(-2), int64_t(1048577)}) {
+    lo.block_cache_mb = mb;
+    expect_error(egopd_model_load((root / "model").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT,
+                 "--block-cache-mb must be between 0 and 1048576 (or -1: the default), got " + std::to_string(mb));
+    EXPECT_EQ(m, nullptr);
+  }
+  lo.block_cache_mb = -1;
   expect_error(egopd_model_load((root / "frames").c_str(), &lo, &m), EGOPD_ERROR, "not a model directory");
   expect_error(egopd_model_load((root / "missing").c_str(), &lo, &m), EGOPD_ERROR_ARGUMENT, "does not exist");
   lo.size = 96;
@@ -382,6 +394,41 @@ TEST_F(Api, ProgressReportsStagesAndCancelLeavesTheModelUsable) {
   egopd_result_free(r);
   const std::vector<std::string> want = {"encode", "denoise 1/2", "denoise 2/2", "decode", "write"};
   EXPECT_EQ(c.seen, want);
+}
+
+// The block cache limit (process-wide) at each progress report of a call.
+int record_block_cache_limit(void* user, const egopd_progress*) {
+  static_cast<std::vector<size_t>*>(user)->push_back(egopd::block_cache_limit());
+  return 0;
+}
+
+// Each model's block_cache_mb holds during its own calls, whichever model ran before; a low_mem model keeps none.
+TEST_F(Api, BlockCacheLimitFollowsTheModelOfEachCall) {
+  const auto load = [](int64_t mb, int low_mem) {
+    return own_model([&](egopd_load_options& lo) {
+      EXPECT_EQ(lo.block_cache_mb, -1);  // the default: EGOPD_BLOCK_CACHE_MB, else 1024
+      lo.block_cache_mb = mb, lo.low_mem = low_mem;
+    });
+  };
+  egopd_model* const three = load(3, 0);
+  egopd_model* const none = load(0, 0);
+  egopd_model* const low_mem = load(64, 1);
+  ASSERT_TRUE(three && none && low_mem);
+  const size_t restore = egopd::block_cache_limit();
+  for (auto [m, want] : {std::pair{three, size_t(3) << 20}, std::pair{none, size_t(0)}, std::pair{three, size_t(3) << 20},
+                         std::pair{low_mem, size_t(0)}}) {
+    std::vector<size_t> seen;
+    egopd_predict_options o = options();
+    o.progress = record_block_cache_limit;
+    o.progress_user = &seen;
+    egopd_result* r = nullptr;
+    ASSERT_EQ(egopd_predict(m, &o, &r), EGOPD_OK) << egopd_last_error();
+    egopd_result_free(r);
+    ASSERT_FALSE(seen.empty());
+    for (size_t limit : seen) EXPECT_EQ(limit, want);
+  }
+  for (egopd_model* m : {three, none, low_mem}) egopd_model_free(m);
+  egopd::set_block_cache_limit(restore);
 }
 
 struct Reentry {

@@ -63,6 +63,10 @@ expect_error "--sampler must be euler or lcm" "${p[@]}" --sampler ddim
 expect_error "--precision 'int4': expected fp32, bf16 or int8" "${p[@]}" --precision int4
 expect_error "--precision needs a value" "${p[@]}" --precision
 expect_error "--conv 'fft': expected direct, winograd or auto" "${p[@]}" --conv fft
+expect_error "--block-cache-mb must be between 0 and 1048576" "${p[@]}" --block-cache-mb 1048577
+expect_error "--block-cache-mb expects an integer" "${p[@]}" --block-cache-mb 1.5
+expect_error "EGOPD_BLOCK_CACHE_MB='64M' is not a size in MiB" env EGOPD_BLOCK_CACHE_MB=64M "${p[@]}"
+expect_error "EGOPD_BLOCK_CACHE_MB='-1' is not a size in MiB" env EGOPD_BLOCK_CACHE_MB=-1 "${p[@]}"
 expect_error "unknown option --precision" "$egopd" evaluate --pred a.csv --gt b.csv --precision bf16
 # Positional arguments where a command takes them: the text of tokenize (77 ids per text).
 ids=$("$egopd" tokenize "a cup" "of tea" --json 2>"$work/tok.log") || fail "tokenize TEXT: $(tail -1 "$work/tok.log")"
@@ -104,5 +108,15 @@ grep -q '"geglu":true' "$work/bench_geglu.json" || fail "bench gemm --geglu: $(c
 grep -q '"percent_of_peak_is"' "$work/bench_direct.json" && fail "direct fp32 report qualifies its % of peak"
 grep -q '"percent_of_peak_is":"direct-fp32-equivalent' "$work/bench_auto.json" \
   || fail "--conv auto report does not qualify its % of peak: $(cat "$work/bench_auto.json")"
+# The block cache limit a bench report names: the flag's, over the environment's.
+for setting in "7|--block-cache-mb 7" "5|env EGOPD_BLOCK_CACHE_MB=5" "9|env EGOPD_BLOCK_CACHE_MB=5 --block-cache-mb 9" \
+  "0|--block-cache-mb 0"; do
+  want=${setting%%|*}
+  read -r -a how <<<"${setting#*|}"
+  if [ "${how[0]}" = env ]; then cmd=(env "${how[1]}" "$egopd" bench gemm "${how[@]:2}")
+  else cmd=("$egopd" bench gemm "${how[@]}"); fi
+  "${cmd[@]}" --m 8 --n 8 --k 8 --threads 1 --json >"$work/bench_cache.json" 2>/dev/null || fail "${cmd[*]}"
+  grep -q "\"block_cache_mb\":$want," "$work/bench_cache.json" || fail "${cmd[*]}: $(cat "$work/bench_cache.json")"
+done
 rm -rf "$work"
 echo "arguments and metadata: $cases malformed invocations rejected with one line each; extra metadata reported"

@@ -3,8 +3,11 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <string>
 
+#include "core/error.h"
 #include "core/tensor.h"
 
 namespace egopd {
@@ -107,6 +110,36 @@ TEST_F(BlockPoolTest, TensorsShareTheCache) {
   EXPECT_EQ(block_cache_stats().cached_blocks, 1u);
   Tensor again(shape);
   EXPECT_EQ(again.data(), first);
+}
+
+// EGOPD_BLOCK_CACHE_MB: a whole number of MiB, 0 included; anything else is an error naming the variable.
+TEST(BlockCacheEnv, WholeMiBOrAnError) {
+  const char* const name = "EGOPD_BLOCK_CACHE_MB";
+  const char* const before = std::getenv(name);
+  const std::string saved = before ? before : "";
+  unsetenv(name);
+  EXPECT_EQ(block_cache_limit_from_env(), default_block_cache_limit());
+  setenv(name, "", 1);
+  EXPECT_EQ(block_cache_limit_from_env(), default_block_cache_limit());
+  setenv(name, "12", 1);
+  EXPECT_EQ(block_cache_limit_from_env(), size_t(12) << 20);
+  setenv(name, "0", 1);
+  EXPECT_EQ(block_cache_limit_from_env(), 0u);
+  setenv(name, "1048576", 1);
+  EXPECT_EQ(block_cache_limit_from_env(), size_t(1) << 40);
+  for (const char* bad : {"1048577", "-1", "+5", " 5", "5 ", "5M", "0x10", "1e3", "99999999999999999999"}) {
+    setenv(name, bad, 1);
+    try {
+      block_cache_limit_from_env();
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const Error& e) {
+      EXPECT_EQ(std::string(e.what()), std::string("EGOPD_BLOCK_CACHE_MB='") + bad + "' is not a size in MiB (0..1048576)");
+    }
+  }
+  if (before)
+    setenv(name, saved.c_str(), 1);
+  else
+    unsetenv(name);
 }
 
 }  // namespace
