@@ -100,12 +100,6 @@ size_t rounded(size_t bytes) { return bytes < 64 ? 64 : (bytes + 63) / 64 * 64; 
 
 }  // namespace
 
-void* aligned_alloc_checked(size_t bytes) {
-  void* p = std::aligned_alloc(64, bytes);
-  if (!p) throw Error("out of memory allocating " + std::to_string(bytes) + " bytes");
-  return p;
-}
-
 void* pooled_alloc(size_t& bytes) {
   bytes = rounded(bytes);
   if (bytes < kPooledBlockMinBytes) return aligned_alloc_checked(bytes);

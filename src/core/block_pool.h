@@ -11,11 +11,7 @@ namespace egopd {
 
 constexpr size_t kPooledBlockMinBytes = size_t(1) << 20;
 
-// 64-byte aligned from the system (bytes a multiple of 64), uninitialised; an Error naming the size when memory runs
-// out. Free with std::free.
-void* aligned_alloc_checked(size_t bytes);
-
-// Like aligned_alloc_checked for any size, large blocks from the cache; `bytes` becomes the block's real size (at
+// Like aligned_alloc_checked (memory.h) for any size, large blocks from the cache; `bytes` becomes the block's real size (at
 // least the request). Free with pooled_free(p, that size).
 void* pooled_alloc(size_t& bytes);
 void pooled_free(void* p, size_t bytes);

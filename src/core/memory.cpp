@@ -57,6 +57,12 @@ void discard_pages(void* p, size_t bytes) {
   if (end > begin) ::madvise(reinterpret_cast<void*>(begin), end - begin, MADV_DONTNEED);
 }
 
+void* aligned_alloc_checked(size_t bytes) {
+  void* p = std::aligned_alloc(64, bytes);
+  if (!p) throw Error("out of memory allocating " + std::to_string(bytes) + " bytes");
+  return p;
+}
+
 AlignedScratch::~AlignedScratch() { std::free(p_); }
 
 float* AlignedScratch::get(size_t floats) {
@@ -65,8 +71,7 @@ float* AlignedScratch::get(size_t floats) {
     p_ = nullptr;
     n_ = 0;
     const size_t bytes = (floats * sizeof(float) + 63) / 64 * 64;
-    p_ = static_cast<float*>(std::aligned_alloc(64, bytes));
-    if (!p_) throw Error("out of memory for " + std::to_string(bytes) + " bytes of kernel scratch");
+    p_ = static_cast<float*>(aligned_alloc_checked(bytes));
     n_ = bytes / sizeof(float);
   }
   return p_;

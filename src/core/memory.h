@@ -23,6 +23,10 @@ bool reset_peak_rss();
 // is never read again before it is freed: those pages read back as zeros.
 void discard_pages(void* p, size_t bytes);
 
+// 64-byte aligned from the system (bytes a multiple of 64), uninitialised; an Error naming the size when memory runs
+// out. Free with std::free.
+void* aligned_alloc_checked(size_t bytes);
+
 // Grow-only 64-byte aligned float buffer (packing and transform scratch of the kernels, one per thread: OpenMP
 // threads persist, so it is allocated once). get(n) keeps the contents only while n does not grow.
 class AlignedScratch {

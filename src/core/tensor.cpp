@@ -7,6 +7,7 @@
 #include "core/block_pool.h"
 #include "core/error.h"
 #include "core/kernels/elementwise.h"
+#include "core/memory.h"
 
 namespace egopd {
 

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/tensor.h"
+#include "reused_blocks.h"
 
 namespace egopd {
 namespace {
@@ -18,16 +19,7 @@ constexpr size_t kMiB = size_t(1) << 20;
 // Each test sets its own limit (the default is 0 under AddressSanitizer) and leaves an empty cache behind.
 class BlockPoolTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    saved_ = block_cache_limit();
-    set_block_cache_limit(0);  // empty
-    set_block_cache_limit(64 * kMiB);
-  }
-  void TearDown() override {
-    set_block_cache_limit(0);
-    set_block_cache_limit(saved_);
-  }
-  size_t saved_ = 0;
+  testing_memory::ScopedBlockCacheLimit limit_{64 * kMiB};
 };
 
 // pooled_alloc with a request of `bytes`; the block's real size in *real

@@ -20,6 +20,7 @@
 #include "pipeline/media.h"
 #include "pipeline/predict_run.h"
 #include "pipeline/synthetic_model.h"
+#include "reused_blocks.h"
 
 namespace egopd {
 namespace {
@@ -100,8 +101,7 @@ TEST_F(PipelineModes, LowMemMatchesNormalMode) {
 }
 
 TEST_F(PipelineModes, LowMemKeepsNoFreedActivationsResident) {
-  const size_t saved = block_cache_limit();
-  set_block_cache_limit(size_t(64) << 20);
+  const testing_memory::ScopedBlockCacheLimit limit(size_t(64) << 20);
   { Tensor freed(Shape{int64_t(1) << 20}); }  // 4 MiB, cached when it goes
   EXPECT_GT(block_cache_stats().cached_bytes, 0u);
   EgoPressureDiffPipeline normal((root / "model").string(), kSize, "", false);
@@ -109,7 +109,6 @@ TEST_F(PipelineModes, LowMemKeepsNoFreedActivationsResident) {
   EgoPressureDiffPipeline low((root / "model").string(), kSize, "", true);
   EXPECT_EQ(block_cache_limit(), 0u);
   EXPECT_EQ(block_cache_stats().cached_bytes, 0u);
-  set_block_cache_limit(saved);
 }
 
 TEST_F(PipelineModes, LowMemChunkedDecodeMatchesNormalModeWithTheSameChunk) {
