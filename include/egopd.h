@@ -72,7 +72,8 @@ typedef struct egopd_load_options {
   const char* conv;          /* 3x3 and temporal convolution algorithm: NULL (EGOPD_CONV, else "auto"),
                                 "direct", "winograd" or "auto" (egopd --help, --conv) */
   int64_t block_cache_mb;    /* MiB of freed activation blocks kept for reuse while this model computes (set for
-                                each of its calls; the blocks stay cached between calls): -1 (the default):
+                                each of its calls; the blocks stay cached between calls, and are given back
+                                when the last model is freed): -1 (the default):
                                 EGOPD_BLOCK_CACHE_MB, else 1024; 0: none (low_mem models keep none);
                                 at most 1048576 (egopd --help, --block-cache-mb) */
 } egopd_load_options;
@@ -86,6 +87,8 @@ typedef struct egopd_model egopd_model;
  * meaningful). options may be NULL (defaults). */
 EGOPD_API egopd_status egopd_model_load(const char* model_dir, const egopd_load_options* options,
                                         egopd_model** model);
+/* Frees a model (NULL: nothing). Freeing the last model also gives back the activation blocks cached between calls
+ * (block_cache_mb). */
 EGOPD_API void egopd_model_free(egopd_model* model);
 /* The folder the model was loaded from (the built-in model's cache folder for NULL). */
 EGOPD_API const char* egopd_model_dir(const egopd_model* model);

@@ -301,7 +301,7 @@ class Model:
     the algorithm of its 3x3 convolutions (README, `--conv`); None: EGOPD_CONV, else "auto". log: a callable
     receiving the run's log lines (what `egopd predict` prints on stderr); None: quiet. block_cache_mb: MiB of
     freed activation blocks kept for reuse in its calls (README, `--block-cache-mb`); None: EGOPD_BLOCK_CACHE_MB,
-    else 1024; 0: none."""
+    else 1024; 0: none. The cached blocks are given back when the last Model is closed."""
 
     def __init__(self, path=None, threads=None, low_mem=False, size=256, template=None, precision="fp32", log=None,
                  conv=None, block_cache_mb=None):

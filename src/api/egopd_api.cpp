@@ -3,6 +3,7 @@
 #include "egopd.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <filesystem>
 #include <limits>
@@ -23,7 +24,26 @@
 #include "egopd/version.h"
 #include "pipeline/predict_run.h"
 
+namespace egopd::api {
+// Counts the models in existence. The block cache keeps freed activation blocks between calls (up to each model's
+// block_cache_mb); when the last model goes, the cache is emptied, so a program that frees its models gets that
+// memory back.
+class ModelCount {
+ public:
+  ModelCount() { live_.fetch_add(1); }
+  ~ModelCount() {
+    if (live_.fetch_sub(1) == 1) empty_block_cache();
+  }
+  ModelCount(const ModelCount&) = delete;
+  ModelCount& operator=(const ModelCount&) = delete;
+
+ private:
+  static inline std::atomic<int> live_{0};
+};
+}  // namespace egopd::api
+
 struct egopd_model {
+  egopd::api::ModelCount counted;  // first member, so destroyed last: after the model's tensors went to the cache
   egopd::PredictOptions load;  // model_dir as given ("": the built-in model), size, low_mem, template_path
   int threads = 0;
   egopd::Precision precision = egopd::Precision::Fp32;  // set for each of its calls, like threads

@@ -55,6 +55,10 @@ class BlockPool {
     limit_ = bytes;
     shrink_to(limit_);
   }
+  void empty() {
+    std::lock_guard<std::mutex> lock(mu_);
+    shrink_to(0);
+  }
   size_t limit() {
     std::lock_guard<std::mutex> lock(mu_);
     return limit_;
@@ -120,6 +124,7 @@ void pooled_free(void* p, size_t bytes) {
 
 void set_block_cache_limit(size_t bytes) { pool().set_limit(bytes); }
 size_t block_cache_limit() { return pool().limit(); }
+void empty_block_cache() { pool().empty(); }
 size_t default_block_cache_limit() { return kDefaultLimit; }
 
 size_t block_cache_limit_from_env() {

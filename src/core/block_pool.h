@@ -20,6 +20,8 @@ void pooled_free(void* p, size_t bytes);
 // blocks at once.
 void set_block_cache_limit(size_t bytes);
 size_t block_cache_limit();
+// Gives back every cached block at once; the limit stays (the C API, when its last model is freed).
+void empty_block_cache();
 // 1 GiB; 0 under AddressSanitizer, so that it still sees every use after free.
 size_t default_block_cache_limit();
 
