@@ -11,8 +11,8 @@ namespace egopd {
 
 constexpr size_t kPooledBlockMinBytes = size_t(1) << 20;
 
-// Like aligned_alloc_checked (memory.h) for any size, large blocks from the cache; `bytes` becomes the block's real size (at
-// least the request). Free with pooled_free(p, that size).
+// Like aligned_alloc_checked (memory.h) for any size, large blocks from the cache; `bytes` becomes the block's real
+// size (at least the request). Free with pooled_free(p, that size).
 void* pooled_alloc(size_t& bytes);
 void pooled_free(void* p, size_t bytes);
 

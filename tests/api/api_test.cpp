@@ -418,8 +418,8 @@ TEST_F(Api, BlockCacheLimitFollowsTheModelOfEachCall) {
   egopd_model* const none = load(0, 0);
   egopd_model* const low_mem = load(64, 1);
   ASSERT_TRUE(three && none && low_mem);
-  for (auto [m, want] : {std::pair{three, size_t(3) << 20}, std::pair{none, size_t(0)}, std::pair{three, size_t(3) << 20},
-                         std::pair{low_mem, size_t(0)}}) {
+  for (auto [m, want] : {std::pair{three, size_t(3) << 20}, std::pair{none, size_t(0)},
+                         std::pair{three, size_t(3) << 20}, std::pair{low_mem, size_t(0)}}) {
     std::vector<size_t> seen;
     egopd_predict_options o = options();
     o.progress = record_block_cache_limit;

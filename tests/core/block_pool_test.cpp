@@ -125,7 +125,8 @@ TEST(BlockCacheEnv, WholeMiBOrAnError) {
       block_cache_limit_from_env();
       ADD_FAILURE() << "accepted '" << bad << "'";
     } catch (const Error& e) {
-      EXPECT_EQ(std::string(e.what()), std::string("EGOPD_BLOCK_CACHE_MB='") + bad + "' is not a size in MiB (0..1048576)");
+      EXPECT_EQ(std::string(e.what()),
+                std::string("EGOPD_BLOCK_CACHE_MB='") + bad + "' is not a size in MiB (0..1048576)");
     }
   }
   if (before)
