@@ -37,8 +37,10 @@ std::string read(const fs::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
-fs::path frame_png(size_t i) { return root / "frames" / ("f" + std::to_string(i) + ".png"); }
-fs::path mask_png(int i) { return root / "masks" / ("m" + std::to_string(i) + ".png"); }
+// The suite's clip files: root/frames/f<i>.png and root/masks/m<i>.png.
+fs::path numbered_png(const std::string& folder, size_t i) {
+  return root / folder / (folder.substr(0, 1) + std::to_string(i) + ".png");
+}
 
 // taxels.csv's layout: header frame,p0..p{M-1}; one row per frame; shortest round-trip decimals.
 std::string taxels_csv(const egopd_result* r) {
@@ -95,21 +97,21 @@ class Api : public ::testing::Test {
     for (size_t i = 0; i < clip.size(); ++i) {
       cv::Mat bgr;
       cv::cvtColor(clip[i], bgr, cv::COLOR_RGB2BGR);
-      cv::imwrite(frame_png(i).string(), bgr);
+      cv::imwrite(numbered_png("frames", i).string(), bgr);
     }
     for (int i = 0; i < 2; ++i) {
       cv::Mat m(96, 96, CV_8UC1, cv::Scalar(0));
       cv::circle(m, cv::Point(48 + 8 * i, 60), 25, cv::Scalar(255), cv::FILLED);
-      cv::imwrite(mask_png(i).string(), m);
+      cv::imwrite(numbered_png("masks", size_t(i)).string(), m);
     }
     // The in-memory copies are what a caller decodes from those files (RGB / grey).
     for (size_t i = 0; i < clip.size(); ++i) {
       cv::Mat rgb;
-      cv::cvtColor(cv::imread(frame_png(i).string()), rgb, cv::COLOR_BGR2RGB);
+      cv::cvtColor(cv::imread(numbered_png("frames", i).string()), rgb, cv::COLOR_BGR2RGB);
       frames.insert(frames.end(), rgb.data, rgb.data + rgb.total() * 3);
     }
     for (int i = 0; i < 2; ++i) {
-      const cv::Mat g = cv::imread(mask_png(i).string(), cv::IMREAD_GRAYSCALE);
+      const cv::Mat g = cv::imread(numbered_png("masks", size_t(i)).string(), cv::IMREAD_GRAYSCALE);
       masks.insert(masks.end(), g.data, g.data + g.total());
     }
     std::ofstream(root / "meta.json") << R"({"obj_name": "a CocaCola", "weight": 355, "material": "aluminum"})";
