@@ -400,7 +400,8 @@ TEST_P(WinogradTest, Bf16RoundsTheInputsThenTransformsInFloat32) {
       EXPECT_EQ(run_wino({2, 19, 21, 9, 7, dt, true, Act::None, false, true}, t, seed++), 0);
       EXPECT_EQ(run_wino({1, 40, 30, 12, 70, dt, true, Act::SiLU, true, true}, t, seed++), 0);
     }
-  const WinoCase c{16, 24, 20, 11, 13, DType::F16, true, Act::None, false, true};
+  // Frames of at least 16 pixels: auto's bf16 F(4x4) keeps to those where vdpbf16ps runs (GemmPath).
+  const WinoCase c{4, 24, 20, 17, 19, DType::F16, true, Act::None, false, true};
   const Reference R(c, 99);
   const Conv2dGeom g{c.cin, c.cout, 3, 3, 1, 1, 1, 1};
   for (ConvAlgo algo : {ConvAlgo::Winograd, ConvAlgo::Auto}) {
@@ -508,6 +509,11 @@ TEST_P(WinogradTest, Conv2dDispatch) {
     EXPECT_FALSE(winograd_wins(1280, 1280, f2_pixels / 16 - 1, 4, 4)) << precision_name(p);
     EXPECT_TRUE(winograd_wins(1280, 1280, f2_pixels / 16, 4, 4)) << precision_name(p);
     EXPECT_TRUE(winograd_wins(1280, 1280, 64, 4, 4)) << precision_name(p);
+    // F(4x4) under bf16 with vdpbf16ps: frames under 16 pixels take the direct convolution.
+    const bool f4_small = !(p == Precision::Bf16 && native_bf16);
+    EXPECT_EQ(winograd_wins(1280, 1280, 16, 8, 8), f4_small) << precision_name(p);
+    EXPECT_EQ(winograd_wins(1280, 1280, 16, 15, 40), f4_small) << precision_name(p);
+    EXPECT_TRUE(winograd_wins(1280, 1280, 16, 16, 16)) << precision_name(p);
   }
   EXPECT_TRUE(winograd_wins(512, 512, 1, 64, 64));
   EXPECT_EQ(winograd_tile_for(4, 4), WinogradTile::F2x2);

@@ -111,8 +111,11 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
     return false;
   // Bf16 (F(2,3) on vdpbf16ps) gains from 256 input channels on; on the VAE decoder's 128 its transforms outweigh
   // the products saved (AMD EPYC Zen 4, 16 frames of 2048-pixel tiles: 2.78 s direct, 3.35 s F(2,3)).
-  const int64_t min_cin = precision() == Precision::Bf16 ? 256 : 16;
-  return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= min_cin && cout >= 16 && hw >= kMinPixels);
+  // Where vdpbf16ps doubles the direct convolution's rate, also from more pixels per frame (GemmPath).
+  const bool bf16 = precision() == Precision::Bf16;
+  const int64_t min_cin = bf16 ? 256 : 16;
+  const int64_t min_hw = bf16 ? gemm_detail::gemm_path().temporal_winograd_min_pixels_bf16 : kMinPixels;
+  return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= min_cin && cout >= 16 && hw >= min_hw);
 }
 
 // F(4,3) where it needs fewer products than F(2,3) (4 per 2 frames against 6 per 4; 16 frames: 32 and 24) and the

@@ -131,6 +131,13 @@ const GemmPath& gemm_path(KernelPath which) {
     p.winograd_f2_min_pixels = p.winograd_f2_min_pixels_bf16 = 256;
     if (cpu_info().avx512_bf16) {
       p.winograd_f2_min_pixels_bf16 = 1024;
+      // F(4x4) against the direct convolution under bf16, 16 frames (AMD EPYC Zen 5 class, 2 threads, bench conv2d,
+      // three alternating rounds): 1280 -> 1280 on 8x8 1.2-1.4x the time, 10x10 1.5x, 12x12 0.91-0.96x, 14x14 1.1x,
+      // 16x16 0.96-1.07x; 2560 / 1920 / 640 -> 1280 on 8x8 1.1-1.4x; 320 -> 320 on 32x32 0.74x.
+      p.winograd_f4_min_frame_bf16 = 16;
+      // Temporal F(2,3) against the direct convolution under bf16, 16 frames (same host, kernels_bench, two
+      // alternating rounds): 1280 channels of 64 pixels 1.07-1.09x the time, 640 of 256 0.70x, 320 of 1024 0.72x.
+      p.temporal_winograd_min_pixels_bf16 = 128;
       p.to_bf16_pairs = to_bf16_pairs_avx512;
       p.micro_bf16 = microkernel_avx512_bf16;
       p.pack_a_bf16 = pack_a_bf16_avx512;

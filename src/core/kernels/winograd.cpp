@@ -161,12 +161,14 @@ bool winograd_wins(int64_t cin, int64_t cout, int64_t n, int64_t h, int64_t w) {
   // Frames under 4 pixels: edge tiles are mostly padding. Few pixels in all: the per-call filter transform is not
   // paid back by the GEMM saving per pixel. Measured on 1280 channels, 2 threads of an AMD EPYC (Zen 5 class): F(4x4)
   // on 8x8 frames is even at 8 frames (512 pixels) and wins at 16 (1.7x with one thread). F(2x2) on 4x4 frames: the
-  // path's thresholds (GemmPath::winograd_f2_min_pixels), lower in float32 than where bf16 doubles the direct rate.
+  // path's thresholds (GemmPath::winograd_f2_min_pixels), lower in float32 than where bf16 doubles the direct rate;
+  // there F(4x4) also keeps to frames of GemmPath::winograd_f4_min_frame_bf16.
   if (cin < 16 || cout < 16 || std::min(h, w) < 4) return false;
   const bool f4 = winograd_tile_for(h, w) == WinogradTile::F4x4;
   const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
-  const int64_t f2_min =
-      precision() == Precision::Bf16 ? path.winograd_f2_min_pixels_bf16 : path.winograd_f2_min_pixels;
+  const bool bf16 = precision() == Precision::Bf16;
+  if (f4 && bf16 && std::min(h, w) < path.winograd_f4_min_frame_bf16) return false;
+  const int64_t f2_min = bf16 ? path.winograd_f2_min_pixels_bf16 : path.winograd_f2_min_pixels;
   return n * h * w >= (f4 ? 512 : f2_min);
 }
 
