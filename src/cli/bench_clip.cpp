@@ -1,9 +1,5 @@
 // `egopd bench clip_image` / `egopd bench clip_text`: the real-size SVD-xt CLIP towers (OpenCLIP ViT-H/14 image
 // tower at 224x224; OpenCLIP-H text tower at 77 tokens) with deterministic random weights.
-#include <time.h>
-
-#include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <memory>
 #include <vector>
@@ -64,32 +60,6 @@ std::shared_ptr<const WeightMap> synthetic_weights(const Config& cfg, const std:
   return bench_synthetic_weights(bench, label, recorder->recorded(), dtype);
 }
 
-// Median wall seconds of `repeat` calls after one untimed warm-up call (first touch of the mapped weights), and the
-// mean process CPU seconds per call (all threads; on a shared machine this shows the work the wall time hides).
-struct Timing {
-  double seconds = 0, cpu_seconds = 0;
-};
-
-double process_cpu_seconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
-
-template <class F>
-Timing time_calls(int64_t repeat, F&& call) {
-  call();
-  std::vector<double> wall;
-  const double cpu0 = process_cpu_seconds();
-  for (int64_t r = 0; r < repeat; ++r) {
-    const auto t0 = std::chrono::steady_clock::now();
-    call();
-    wall.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::sort(wall.begin(), wall.end());
-  return Timing{wall[wall.size() / 2], (process_cpu_seconds() - cpu0) / double(repeat)};
-}
-
 }  // namespace
 
 int bench_clip_image(const Args& a) {
@@ -103,14 +73,14 @@ int bench_clip_image(const Args& a) {
   BenchReport r;
   r.target = "clip_image";
   r.threads = num_threads();
-  const Timing t = time_calls(o.repeat, [&] { sink += model.forward(pixels).image_embeds[0]; });
-  r.seconds = t.seconds;
+  // After one untimed call: the first touches of the mapped weights.
+  const CallTimes t = median_call_times(o.repeat, true, [&] { sink += model.forward(pixels).image_embeds[0]; });
+  r.seconds = t.wall, r.cpu_seconds = t.cpu;
   r.gflop = model.flops_per_image() * 1e-9;
   r.extra["config"] = "svd-xt";
   r.extra["dtype"] = dtype_name(o.dtype);
   r.extra["image_size"] = cfg.image_size;
   r.extra["repeat"] = o.repeat;
-  r.extra["cpu_seconds"] = t.cpu_seconds;
   r.extra["checksum"] = sink;
   print_bench_report(r, o.json);
   return 0;
@@ -130,14 +100,13 @@ int bench_clip_text(const Args& a) {
   BenchReport r;
   r.target = "clip_text";
   r.threads = num_threads();
-  const Timing t = time_calls(o.repeat, [&] { sink += model.forward(ids).last_hidden_state[0]; });
-  r.seconds = t.seconds;
+  const CallTimes t = median_call_times(o.repeat, true, [&] { sink += model.forward(ids).last_hidden_state[0]; });
+  r.seconds = t.wall, r.cpu_seconds = t.cpu;
   r.gflop = model.flops_per_sequence(len) * 1e-9;
   r.extra["config"] = "svd-xt";
   r.extra["dtype"] = dtype_name(o.dtype);
   r.extra["tokens"] = len;
   r.extra["repeat"] = o.repeat;
-  r.extra["cpu_seconds"] = t.cpu_seconds;
   r.extra["checksum"] = sink;
   print_bench_report(r, o.json);
   return 0;

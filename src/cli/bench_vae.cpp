@@ -26,7 +26,7 @@ namespace {
 
 struct VaeBenchOptions {
   DType dtype = DType::F16;
-  int64_t frames = 16, size = 256, chunk = 0, repeat = 1;
+  int64_t frames = 16, size = 256, chunk = 0, repeat = 1, warmup = 0;
   bool json = false;
   bool profile_kernels = false;
 };
@@ -39,6 +39,7 @@ VaeBenchOptions read_options(const Args& a, const std::string& target, bool deco
   o.dtype = parse_weight_dtype(a.get("dtype", "f16"), "dtype");
   if (decode) o.chunk = a.get_int("decode-chunk", 0);
   o.repeat = a.get_int("repeat", 1);
+  o.warmup = a.get_int("warmup", 0);
   o.json = a.flag("json");
   o.profile_kernels = a.flag("kernel-profile");
   a.finish();
@@ -47,6 +48,7 @@ VaeBenchOptions read_options(const Args& a, const std::string& target, bool deco
   if (o.size < 8 || o.size % 8 != 0) throw Error("bench " + target + ": --size must be a positive multiple of 8");
   if (o.chunk < 0) throw Error("bench " + target + ": --decode-chunk must be positive (0 = all frames)");
   if (o.repeat < 1 || o.repeat > 100) throw Error("bench " + target + ": --repeat must be between 1 and 100");
+  if (o.warmup < 0 || o.warmup > 100) throw Error("bench " + target + ": --warmup must be between 0 and 100");
   return o;
 }
 
@@ -97,19 +99,27 @@ int run_vae_bench(const Args& a, bool decode) {
   r.extra["repeat"] = o.repeat;
   r.extra["weights_bytes"] = vae.weight_bytes();
   r.extra["rss_before_run_bytes"] = current_rss_bytes();
+  r.extra["warmup_calls"] = o.warmup;
   Tensor y;
+  const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
+  const Tensor input = decode ? pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f)
+                              : pattern(Shape{o.frames, cfg.in_channels, o.size, o.size}, 1.0f);
+  const auto call = [&] { y = decode ? vae.decode_latents(input, o.frames, chunk) : vae.encode_mean(input); };
+  // Untimed calls first when asked (the first call also faults the mapped weights and the scratch in), outside the
+  // kernel profile.
+  for (int64_t e = 0; e < o.warmup; ++e) {
+    const auto t0 = std::chrono::steady_clock::now();
+    call();
+    std::fprintf(stderr, "bench %s: warm-up %lld/%lld %.2f s (not timed)\n", target.c_str(), (long long)(e + 1),
+                 (long long)o.warmup, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
   set_kernel_profiling(o.profile_kernels);
+  const CallTimes t = median_call_times(o.repeat, false, call);
+  r.seconds = t.wall, r.cpu_seconds = t.cpu;
   if (decode) {
-    const int64_t chunk = o.chunk > 0 ? o.chunk : o.frames;
-    const Tensor latents = pattern(Shape{o.frames, cfg.latent_channels, latent, latent}, 1.0f);
-    const CallTimes t = median_call_times(o.repeat, false, [&] { y = vae.decode_latents(latents, o.frames, chunk); });
-    r.seconds = t.wall, r.cpu_seconds = t.cpu;
     r.gflop = vae_decode_flop(cfg, o.frames, latent, latent) * 1e-9;
     r.extra["decode_chunk"] = chunk;
   } else {
-    const Tensor images = pattern(Shape{o.frames, cfg.in_channels, o.size, o.size}, 1.0f);
-    const CallTimes t = median_call_times(o.repeat, false, [&] { y = vae.encode_mean(images); });
-    r.seconds = t.wall, r.cpu_seconds = t.cpu;
     r.gflop = vae_encode_flop(cfg, o.frames, o.size, o.size) * 1e-9;
   }
   describe_output(y, r);

@@ -41,10 +41,11 @@ const BenchTarget kBenchTargets[] = {
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"vae_encode", bench_vae_encode,
-     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--repeat 1] [--kernel-profile]"},
+     "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--repeat 1] [--warmup 0]\n"
+     "      [--kernel-profile]"},
     {"vae_decode", bench_vae_decode,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--decode-chunk N] [--repeat 1]\n"
-     "      [--kernel-profile]"},
+     "      [--warmup 0] [--kernel-profile]   --warmup: untimed calls first (clip_*: always one)"},
     {"gemm", bench_gemm, "--m M --n N --k K [--dtype f32|f16|bf16] [--trans-b] [--geglu] [--repeat R]"},
     {"conv2d", bench_conv2d,
      "--frames N --cin C --cout C --h H --w W --kernel 3 [--stride 1] [--dtype f32|f16|bf16] [--repeat R]\n"

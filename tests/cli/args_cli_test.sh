@@ -92,6 +92,7 @@ expect_error "unknown command 'predcit'" "$egopd" predcit --out "$out"
 expect_error "--seed expects an integer" "$convert" synth --out "$out" --seed -5
 expect_error "--lcm-steps" "$convert" synth --out "$out" --lcm-steps x
 expect_error "--geglu needs an even --n" "$egopd" bench gemm --m 4 --n 5 --k 4 --geglu
+expect_error "bench vae_decode: --warmup must be between 0 and 100" "$egopd" bench vae_decode --warmup -1
 
 # Extra metadata fields (a dataset's category, say) are reported by name, and the run goes on.
 "${p[@]}" --meta "$work/extra.json" --threads 1 2>"$work/extra.log" || fail "extra field: $(tail -1 "$work/extra.log")"
