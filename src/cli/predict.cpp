@@ -18,6 +18,8 @@ PredictOptions read_predict_options(const Args& a) {
   o.seed = a.get_uint64("seed", 0);
   o.frames = a.get_int("frames", 0, 1, 1024);
   o.size = a.get_int("size", 256, 64, 4096);
+  if (o.size % 64)
+    throw Error(a.command() + ": --size must be a multiple of 64 (64..4096), got " + std::to_string(o.size));
   if (a.has("guidance")) o.guidance = parse_guidance(a.get("guidance", ""));
   o.decode_chunk = a.get_int("decode-chunk", 0, 1, 1024);
   o.low_mem = a.flag("low-mem");

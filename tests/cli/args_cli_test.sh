@@ -49,7 +49,8 @@ expect_error "--seed expects an integer" "${p[@]}" --seed ""
 expect_error "--seed expects an integer" "${p[@]}" --seed " 7"
 expect_error "--seed needs a value" "${p[@]}" --seed
 expect_error "--size must be between 64 and 4096" "${p[@]}" --size 8192
-expect_error "--size must be a positive multiple of 64" "${p[@]}" --size 100
+expect_error "predict: --size must be a multiple of 64 (64..4096), got 100" "${p[@]}" --size 100
+expect_error "counterfactual: --size must be a multiple of 64" "$egopd" counterfactual --out "$out" --size 96
 expect_error "--frames must be between 1 and 1024" "${p[@]}" --frames 0
 expect_error "--frames must be between 1 and 1024" "${p[@]}" --frames 99999999999999999999
 expect_error "--frames expects an integer" "${p[@]}" --frames 2.5
