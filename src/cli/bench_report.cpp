@@ -41,6 +41,15 @@ CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<voi
   return {median(wall), median(cpu)};
 }
 
+void warm_up(const std::string& target, int64_t n, const std::function<void()>& call) {
+  for (int64_t e = 0; e < n; ++e) {
+    const auto t0 = std::chrono::steady_clock::now();
+    call();
+    std::fprintf(stderr, "bench %s: warm-up %lld/%lld %.2f s (not timed)\n", target.c_str(), (long long)(e + 1),
+                 (long long)n, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+}
+
 void add_kernel_profile(BenchReport& r, int64_t runs) {
   const double per_run = 1.0 / double(std::max<int64_t>(runs, 1));
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();

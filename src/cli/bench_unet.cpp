@@ -72,9 +72,7 @@ int bench_unet(const Args& a) {
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
     return std::make_pair(wall, cpu_s);
   };
-  for (int64_t e = 0; e < warmup; ++e)
-    std::fprintf(stderr, "bench unet: warm-up %lld/%lld %.2f s (not timed)\n", (long long)(e + 1), (long long)warmup,
-                 evaluate().first);
+  warm_up("unet", warmup, [&] { evaluate(); });
   StageTimes stages;
   unet.set_profile(&stages);
   set_kernel_profiling(profile_kernels);

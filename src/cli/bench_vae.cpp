@@ -2,7 +2,6 @@
 // deterministic random weights (written once into the cache folder), on a clip of --frames frames at --size x --size
 // pixels.
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -107,12 +106,7 @@ int run_vae_bench(const Args& a, bool decode) {
   const auto call = [&] { y = decode ? vae.decode_latents(input, o.frames, chunk) : vae.encode_mean(input); };
   // Untimed calls first when asked (the first call also faults the mapped weights and the scratch in), outside the
   // kernel profile.
-  for (int64_t e = 0; e < o.warmup; ++e) {
-    const auto t0 = std::chrono::steady_clock::now();
-    call();
-    std::fprintf(stderr, "bench %s: warm-up %lld/%lld %.2f s (not timed)\n", target.c_str(), (long long)(e + 1),
-                 (long long)o.warmup, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
+  warm_up(target, o.warmup, call);
   set_kernel_profiling(o.profile_kernels);
   const CallTimes t = median_call_times(o.repeat, false, call);
   r.seconds = t.wall, r.cpu_seconds = t.cpu;

@@ -67,6 +67,9 @@ struct CallTimes {
   double wall = 0, cpu = 0;
 };
 CallTimes median_call_times(int64_t repeat, bool warmup, const std::function<void()>& call);
+// `n` untimed calls (bench unet, vae_*: --warmup), each reported on stderr as
+// "bench <target>: warm-up i/n S s (not timed)".
+void warm_up(const std::string& target, int64_t n, const std::function<void()>& call);
 // FP32 peak of `threads` threads on the kernel path in use, measured with an FMA loop (override:
 // EGOPD_PEAK_GFLOPS per core); probe_again: probe once more and keep the better figure (fma_peak.h).
 double peak_gflops(int threads, bool probe_again = false);

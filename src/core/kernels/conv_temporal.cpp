@@ -114,7 +114,7 @@ bool temporal_winograd(int64_t f, int64_t cin, int64_t cout, int64_t hw) {
   // Where vdpbf16ps doubles the direct convolution's rate, also from more pixels per frame (GemmPath).
   const bool bf16 = precision() == Precision::Bf16;
   const int64_t min_cin = bf16 ? 256 : 16;
-  const int64_t min_hw = bf16 ? gemm_detail::gemm_path().temporal_winograd_min_pixels_bf16 : kMinPixels;
+  const int64_t min_hw = std::max(kMinPixels, bf16 ? gemm_detail::gemm_path().temporal_winograd_min_pixels_bf16 : 0);
   return algo == ConvAlgo::Winograd || (algo == ConvAlgo::Auto && cin >= min_cin && cout >= 16 && hw >= min_hw);
 }
 

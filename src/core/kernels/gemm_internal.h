@@ -109,9 +109,10 @@ struct GemmPath {
   // Winograd's products stay float32, so where vdpbf16ps doubles the direct convolution's rate 4x4 frames keep it.
   int64_t winograd_f2_min_pixels = 1024;
   int64_t winograd_f2_min_pixels_bf16 = 1024;
-  // Under bf16 and --conv auto, F(4x4) runs on frames at least this wide and high; smaller ones take the direct
-  // convolution (where vdpbf16ps doubles its rate, it beats float32 Winograd's few 4x4 tiles per frame).
-  int64_t winograd_f4_min_frame_bf16 = 8;
+  // Under bf16 and --conv auto, F(4x4) runs on frames at least this wide and high (0: wherever float32's runs);
+  // smaller ones take the direct convolution (where vdpbf16ps doubles its rate, it beats float32 Winograd's few 4x4
+  // tiles per frame).
+  int64_t winograd_f4_min_frame_bf16 = 0;
   // Under Int8 and --conv auto, 3x3 convolutions take Winograd on quantised operands (winograd.h) where Winograd
   // wins in float32 and the frames are at least this wide and high (conv.cpp). Only where it beats the int8 direct
   // convolution (AVX2's vpmaddubsw); the others keep the direct convolution, whose numbers the int8 dot products and
@@ -120,9 +121,9 @@ struct GemmPath {
   // Under Int8 and --conv auto, temporal convolutions take Winograd F(2,3) on quantised transformed operands
   // (conv_temporal.cpp) where it beats the int8 direct convolution (measured on AVX2's vpmaddubsw only).
   bool i8_temporal_winograd = false;
-  // Under bf16 and --conv auto, temporal convolutions take Winograd F(2,3) on frames of at least this many pixels
-  // (conv_temporal.cpp; float32's 32 where the direct convolution's rate is float32's).
-  int64_t temporal_winograd_min_pixels_bf16 = 32;
+  // Under bf16 and --conv auto, temporal convolutions take Winograd F(2,3) only on frames of at least this many
+  // pixels, beyond float32's own minimum (conv_temporal.cpp; 0: none beyond it).
+  int64_t temporal_winograd_min_pixels_bf16 = 0;
   // Blocking (gemm_paths.cpp: BlockRule, from the cache sizes).
   int64_t kc = 384;          // depth of a K pass
   int64_t mc = 192;          // rows of an A block (a multiple of mr)
