@@ -23,7 +23,7 @@ double peak_gflops(int threads, bool probe_again) {
   return probe_again ? remeasure_peak_gflops(kernel_path(), threads) : measured_peak_gflops(kernel_path(), threads);
 }
 
-static double median(std::vector<double> t) {
+double median(std::vector<double> t) {
   std::sort(t.begin(), t.end());
   return t.size() % 2 ? t[t.size() / 2] : 0.5 * (t[t.size() / 2 - 1] + t[t.size() / 2]);
 }

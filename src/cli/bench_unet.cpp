@@ -6,10 +6,15 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <sstream>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/kernels/gemm.h"
 #include "core/kernels/kernel_profile.h"
 #include "core/threading.h"
 #include "core/timing.h"
@@ -24,6 +29,77 @@ DType parse_weight_dtype(const std::string& s, const std::string& option) {
   throw Error("--" + option + " must be f32, f16 or bf16 (got '" + s + "')");
 }
 
+namespace {
+
+double lower_median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[(v.size() - 1) / 2];
+}
+
+// --precisions fp32,bf16,...: the precisions to alternate (empty without the flag).
+std::vector<Precision> alternated_precisions(const Args& a) {
+  if (!a.has("precisions")) return {};
+  if (a.has("precision")) throw Error("bench unet: give --precision or --precisions, not both");
+  if (a.flag("kernel-profile")) throw Error("bench unet: --kernel-profile takes one --precision, not --precisions");
+  std::vector<Precision> out;
+  std::stringstream list(a.get("precisions", ""));
+  for (std::string name; std::getline(list, name, ',');) {
+    Precision p;
+    if (!parse_precision(name.c_str(), &p))
+      throw Error("bench unet: --precisions: '" + name + "' is not fp32, bf16 or int8");
+    for (Precision q : out)
+      if (q == p) throw Error("bench unet: --precisions names " + name + " twice");
+    out.push_back(p);
+  }
+  if (out.size() < 2) throw Error("bench unet: --precisions needs two or more of fp32, bf16, int8 (e.g. fp32,bf16)");
+  return out;
+}
+
+// Rounds of one evaluation per precision, in the order given, after `warmup` rounds: on a shared machine whose speed
+// drifts over minutes, the ratio of two evaluations a few seconds apart moves far less than that of two runs. The
+// report: each precision's seconds per round and lower median, and the first precision's time over each other's,
+// per round and the median of those.
+int bench_unet_alternating(const std::vector<Precision>& precisions, int64_t evals, int64_t warmup, BenchReport r,
+                           bool json, const std::function<std::pair<double, double>()>& evaluate) {
+  for (int64_t e = 0; e < warmup; ++e)
+    for (Precision p : precisions) {
+      set_precision(p);
+      warm_up(std::string("unet ") + precision_name(p), 1, [&] { evaluate(); });
+    }
+  std::vector<std::vector<double>> secs(precisions.size()), cpu(precisions.size());
+  for (int64_t e = 0; e < evals; ++e)
+    for (size_t i = 0; i < precisions.size(); ++i) {
+      set_precision(precisions[i]);
+      const auto [wall, cpu_s] = evaluate();
+      secs[i].push_back(wall);
+      cpu[i].push_back(cpu_s);
+      std::fprintf(stderr, "bench unet: round %lld/%lld %s %.2f s\n", (long long)(e + 1), (long long)evals,
+                   precision_name(precisions[i]), wall);
+    }
+  nlohmann::ordered_json per = nlohmann::ordered_json::object();
+  for (size_t i = 0; i < precisions.size(); ++i) {
+    nlohmann::ordered_json row;
+    row["seconds_per_round"] = secs[i];
+    row["seconds"] = lower_median(secs[i]);
+    row["cpu_seconds"] = lower_median(cpu[i]);
+    if (i > 0) {
+      std::vector<double> ratio;
+      for (int64_t e = 0; e < evals; ++e) ratio.push_back(secs[0][size_t(e)] / secs[i][size_t(e)]);
+      row["speedup_per_round"] = ratio;
+      row["speedup"] = median(ratio);  // over the first precision, same round
+    }
+    per[precision_name(precisions[i])] = row;
+  }
+  set_precision(precisions[0]);  // the report's own fields are the first precision's
+  r.seconds = lower_median(secs[0]);
+  r.cpu_seconds = lower_median(cpu[0]);
+  r.extra["alternating"] = per;
+  print_bench_report(r, json);
+  return 0;
+}
+
+}  // namespace
+
 int bench_unet(const Args& a) {
   const std::string config = a.get("config", "svd-xt");
   const int64_t frames = a.get_int("frames", 16);
@@ -35,6 +111,7 @@ int bench_unet(const Args& a) {
   const bool json = a.flag("json");
   const bool profile_kernels = a.flag("kernel-profile");
   const std::string weights_dir = a.get("weights", "");
+  const std::vector<Precision> rounds_of = alternated_precisions(a);
   a.finish();
   if (config != "svd-xt") throw Error("bench unet: --config must be svd-xt (got '" + config + "')");
   if (frames < 1 || size < 64 || size % 64 || evals < 1 || warmup < 0)
@@ -72,24 +149,9 @@ int bench_unet(const Args& a) {
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
     return std::make_pair(wall, cpu_s);
   };
-  warm_up("unet", warmup, [&] { evaluate(); });
-  StageTimes stages;
-  unet.set_profile(&stages);
-  set_kernel_profiling(profile_kernels);
-  std::vector<double> secs, cpu;
-  for (int64_t e = 0; e < evals; ++e) {
-    const auto [wall, cpu_s] = evaluate();
-    secs.push_back(wall);
-    cpu.push_back(cpu_s);
-    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals, wall);
-  }
-  std::sort(secs.begin(), secs.end());
-  std::sort(cpu.begin(), cpu.end());
   const auto fl = unet.flops(1, frames, h, w, 1, pifr ? 77 : 0);
   BenchReport r;
   r.target = "unet";
-  r.seconds = secs[(secs.size() - 1) / 2];  // lower median
-  r.cpu_seconds = cpu[(cpu.size() - 1) / 2];
   r.gflop = fl.executed / 1e9;
   r.threads = num_threads();
   r.extra["config"] = config;
@@ -102,6 +164,22 @@ int bench_unet(const Args& a) {
   r.extra["warmup_evaluations"] = warmup;
   r.extra["gflop_pytorch_count"] = fl.total / 1e9;
   r.extra["weights_bytes"] = weights->total_bytes();
+  // (The conditioning above was prepared in --precision's arithmetic, fp32 under --precisions; untimed either way.)
+  if (!rounds_of.empty()) return bench_unet_alternating(rounds_of, evals, warmup, r, json, evaluate);
+
+  warm_up("unet", warmup, [&] { evaluate(); });
+  StageTimes stages;
+  unet.set_profile(&stages);
+  set_kernel_profiling(profile_kernels);
+  std::vector<double> secs, cpu;
+  for (int64_t e = 0; e < evals; ++e) {
+    const auto [wall, cpu_s] = evaluate();
+    secs.push_back(wall);
+    cpu.push_back(cpu_s);
+    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals, wall);
+  }
+  r.seconds = lower_median(secs);
+  r.cpu_seconds = lower_median(cpu);
   nlohmann::ordered_json br = nlohmann::ordered_json::object();
   for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
   r.extra["breakdown_seconds"] = br;

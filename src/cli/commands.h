@@ -63,6 +63,7 @@ void print_bench_report(const BenchReport& r, bool json);
 void add_kernel_profile(BenchReport& r, int64_t runs);
 // Median wall and process-CPU seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first
 // touches of mapped weights and scratch buffers).
+double median(std::vector<double> values);  // of one or more values; an even count: the mean of the middle two
 struct CallTimes {
   double wall = 0, cpu = 0;
 };

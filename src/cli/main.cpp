@@ -37,7 +37,9 @@ const BenchTarget kBenchTargets[] = {
     {"unet", bench_unet,
      "[--config svd-xt] [--frames 16] [--size 256] [--dtype f16|f32|bf16] [--evals 1] [--warmup 1] [--pifr]\n"
      "      [--weights DIR] [--kernel-profile]   the profile: time, calls and GFLOP/s per GEMM, convolution and\n"
-     "      attention shape"},
+     "      attention shape\n"
+     "      [--precisions fp32,bf16,int8]   alternate: each round one evaluation per precision, in this order; the\n"
+     "      report gives each one's seconds and the first one's time over each other's, per round and their median"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"vae_encode", bench_vae_encode,

@@ -94,6 +94,12 @@ expect_error "--seed expects an integer" "$convert" synth --out "$out" --seed -5
 expect_error "--lcm-steps" "$convert" synth --out "$out" --lcm-steps x
 expect_error "--geglu needs an even --n" "$egopd" bench gemm --m 4 --n 5 --k 4 --geglu
 expect_error "bench vae_decode: --warmup must be between 0 and 100" "$egopd" bench vae_decode --warmup -1
+# bench unet --precisions (alternating rounds) is checked before any weights are written or loaded.
+expect_error "--precisions: 'int4' is not fp32, bf16 or int8" "$egopd" bench unet --precisions fp32,int4
+expect_error "--precisions needs two or more" "$egopd" bench unet --precisions bf16
+expect_error "--precisions names bf16 twice" "$egopd" bench unet --precisions bf16,fp32,bf16
+expect_error "give --precision or --precisions, not both" "$egopd" bench unet --precision bf16 --precisions fp32,bf16
+expect_error "--kernel-profile takes one --precision" "$egopd" bench unet --precisions fp32,bf16 --kernel-profile
 
 # Extra metadata fields (a dataset's category, say) are reported by name, and the run goes on.
 "${p[@]}" --meta "$work/extra.json" --threads 1 2>"$work/extra.log" || fail "extra field: $(tail -1 "$work/extra.log")"
