@@ -10,6 +10,7 @@
 #include "core/error.h"
 #include "core/kernels/conv.h"
 #include "core/kernels/gemm.h"
+#include "core/memory.h"
 #include "core/threading.h"
 #include "egopd/version.h"
 
@@ -182,6 +183,7 @@ void print_help() {
       "  EGOPD_THREADS   default thread count\n"
       "  EGOPD_CONV      default of --conv\n"
       "  EGOPD_BLOCK_CACHE_MB   default of --block-cache-mb\n"
+      "  EGOPD_HUGE_PAGES   0: no transparent huge pages for buffers of 4 MiB and more (default 1)\n"
       "  EGOPD_KERNELS   kernel path: avx512, avx2 or portable (default: the best this CPU supports;\n"
       "                  EGOPD_PORTABLE=1 is the same as EGOPD_KERNELS=portable)\n");
 }
@@ -214,6 +216,7 @@ int run(int argc, char** argv) {
       }
     Args a(name, rest);
     init_threads_from_env();
+    huge_pages_enabled();  // a malformed EGOPD_HUGE_PAGES is an error before any work
     if (a.has("threads")) {
       set_num_threads(int(a.get_int("threads", 0, 1, 1024)));
     }

@@ -24,8 +24,12 @@ bool reset_peak_rss();
 void discard_pages(void* p, size_t bytes);
 
 // 64-byte aligned from the system (bytes a multiple of 64), uninitialised; an Error naming the size when memory runs
-// out. Free with std::free.
+// out. Free with std::free. From 4 MiB on, 2 MiB aligned and marked for transparent huge pages (memory.cpp; not with
+// EGOPD_HUGE_PAGES=0).
 void* aligned_alloc_checked(size_t bytes);
+// Whether aligned_alloc_checked asks for huge pages: EGOPD_HUGE_PAGES 1 (default) or 0, read once; an Error naming the
+// variable for any other value.
+bool huge_pages_enabled();
 
 // Grow-only 64-byte aligned float buffer (packing and transform scratch of the kernels, one per thread: OpenMP
 // threads persist, so it is allocated once). get(n) keeps the contents only while n does not grow.

@@ -83,6 +83,7 @@ expect_error "missing.json: metadata file does not exist" "${p[@]}" --meta "$wor
 expect_error "nowhere.mp4: video file or frame folder does not exist" "${p[@]}" --video "$work/nowhere.mp4"
 expect_error "EGOPD_TEMPLATE: no such file" env EGOPD_TEMPLATE="$work/none.json" "${p[@]}"
 expect_error "EGOPD_THREADS='abc'" env EGOPD_THREADS=abc "${p[@]}"
+expect_error "EGOPD_HUGE_PAGES='2': expected 0 or 1" env EGOPD_HUGE_PAGES=2 "${p[@]}"
 expect_error "EGOPD_TOKENIZER_DIR=$work/none: no vocab.json and merges.txt" \
   env EGOPD_TOKENIZER_DIR="$work/none" "$egopd" tokenize hello
 expect_error "unexpected argument 'x.csv'" "$egopd" evaluate x.csv --pred a --gt b
