@@ -14,11 +14,6 @@ namespace {
 
 constexpr size_t kMiB = size_t(1) << 20;
 
-bool huge_pages_disabled() {
-  const char* e = std::getenv("EGOPD_HUGE_PAGES");
-  return e && std::string(e) == "0";
-}
-
 // The VmFlags line of the mapping of /proc/self/smaps that holds p ("" if none).
 std::string vm_flags_of(const void* p) {
   std::ifstream smaps("/proc/self/smaps");
@@ -55,7 +50,7 @@ TEST(AlignedAlloc, SmallBuffersAre64ByteAligned) {
 }
 
 TEST(AlignedAlloc, LargeBuffersStartOnHugePageBoundaries) {
-  const size_t alignment = huge_pages_disabled() ? 64 : 2 * kMiB;  // EGOPD_HUGE_PAGES=0: as small buffers
+  const size_t alignment = huge_pages_enabled() ? 2 * kMiB : 64;  // EGOPD_HUGE_PAGES=0: as small buffers
   for (size_t bytes : {4 * kMiB, 5 * kMiB + 64, 33 * kMiB}) {
     auto* p = static_cast<unsigned char*>(aligned_alloc_checked(bytes));
     EXPECT_EQ(reinterpret_cast<uintptr_t>(p) % alignment, 0u) << bytes;
@@ -64,7 +59,7 @@ TEST(AlignedAlloc, LargeBuffersStartOnHugePageBoundaries) {
     EXPECT_EQ(p[bytes - 1], 0x5a);
 #if defined(__x86_64__) && defined(__linux__)
     // Natively (not under an emulator, which may ignore the advice) the mapping carries the advice: "hg" in VmFlags.
-    if (!huge_pages_disabled() && kernel_offers_huge_pages()) {
+    if (huge_pages_enabled() && kernel_offers_huge_pages()) {
       EXPECT_NE(vm_flags_of(p).find(" hg"), std::string::npos) << vm_flags_of(p);
     }
 #endif
