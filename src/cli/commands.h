@@ -61,9 +61,9 @@ void print_bench_report(const BenchReport& r, bool json);
 // --kernel-profile: r.extra["kernel_profile"] from the kernel calls recorded so far (core/kernels/kernel_profile.h),
 // per run of `runs`, slowest first, with their GFLOP/s and share of the run; then profiling stops.
 void add_kernel_profile(BenchReport& r, int64_t runs);
+double median(std::vector<double> values);  // of one or more values; an even count: the mean of the middle two
 // Median wall and process-CPU seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first
 // touches of mapped weights and scratch buffers).
-double median(std::vector<double> values);  // of one or more values; an even count: the mean of the middle two
 struct CallTimes {
   double wall = 0, cpu = 0;
 };
