@@ -55,47 +55,56 @@ std::vector<Precision> alternated_precisions(const Args& a) {
   return out;
 }
 
-// Rounds of one evaluation per precision, in the order given, after `warmup` rounds: on a shared machine whose speed
-// drifts over minutes, the ratio of two evaluations a few seconds apart moves far less than that of two runs. The
-// report: each precision's seconds per round and lower median, and the first precision's time over each other's,
-// per round and the median of those.
-int bench_unet_alternating(const std::vector<Precision>& precisions, int64_t evals, int64_t warmup, BenchReport r,
-                           bool json, const std::function<std::pair<double, double>()>& evaluate) {
-  for (int64_t e = 0; e < warmup; ++e)
-    for (Precision p : precisions) {
-      set_precision(p);
-      warm_up(std::string("unet ") + precision_name(p), 1, [&] { evaluate(); });
-    }
-  std::vector<std::vector<double>> secs(precisions.size()), cpu(precisions.size());
+// Wall and CPU seconds of each precision's timed evaluations, in round order.
+struct RoundTimes {
+  std::vector<std::vector<double>> wall, cpu;
+};
+
+// `warmup` untimed rounds, then `evals` timed ones (`before_timing` runs between them), each round one evaluation per
+// precision in the order given. One precision: plain repeated evaluations in it. Several: on a shared machine whose
+// speed drifts over minutes, the ratio of two evaluations a few seconds apart moves far less than that of two runs.
+RoundTimes timed_rounds(const std::vector<Precision>& precisions, int64_t warmup, int64_t evals,
+                        const std::function<void()>& before_timing,
+                        const std::function<std::pair<double, double>()>& evaluate) {
+  const auto label = [&](Precision p) { return precisions.size() > 1 ? std::string(" ") + precision_name(p) : ""; };
+  warm_up("unet", warmup, [&] {  // one round
+    for (Precision p : precisions) set_precision(p), evaluate();
+  });
+  before_timing();
+  RoundTimes t;
+  t.wall.resize(precisions.size());
+  t.cpu.resize(precisions.size());
   for (int64_t e = 0; e < evals; ++e)
     for (size_t i = 0; i < precisions.size(); ++i) {
       set_precision(precisions[i]);
       const auto [wall, cpu_s] = evaluate();
-      secs[i].push_back(wall);
-      cpu[i].push_back(cpu_s);
-      std::fprintf(stderr, "bench unet: round %lld/%lld %s %.2f s\n", (long long)(e + 1), (long long)evals,
-                   precision_name(precisions[i]), wall);
+      t.wall[i].push_back(wall);
+      t.cpu[i].push_back(cpu_s);
+      std::fprintf(stderr, "bench unet: evaluation %lld/%lld%s %.2f s\n", (long long)(e + 1), (long long)evals,
+                   label(precisions[i]).c_str(), wall);
     }
+  set_precision(precisions[0]);  // the report's own fields are the first precision's
+  return t;
+}
+
+// --precisions: each precision's seconds per round and lower median, and the first precision's time over each
+// other's, per round and the median of those.
+nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisions, const RoundTimes& t) {
   nlohmann::ordered_json per = nlohmann::ordered_json::object();
   for (size_t i = 0; i < precisions.size(); ++i) {
     nlohmann::ordered_json row;
-    row["seconds_per_round"] = secs[i];
-    row["seconds"] = lower_median(secs[i]);
-    row["cpu_seconds"] = lower_median(cpu[i]);
+    row["seconds_per_round"] = t.wall[i];
+    row["seconds"] = lower_median(t.wall[i]);
+    row["cpu_seconds"] = lower_median(t.cpu[i]);
     if (i > 0) {
       std::vector<double> ratio;
-      for (int64_t e = 0; e < evals; ++e) ratio.push_back(secs[0][size_t(e)] / secs[i][size_t(e)]);
+      for (size_t e = 0; e < t.wall[i].size(); ++e) ratio.push_back(t.wall[0][e] / t.wall[i][e]);
       row["speedup_per_round"] = ratio;
       row["speedup"] = median(ratio);  // over the first precision, same round
     }
     per[precision_name(precisions[i])] = row;
   }
-  set_precision(precisions[0]);  // the report's own fields are the first precision's
-  r.seconds = lower_median(secs[0]);
-  r.cpu_seconds = lower_median(cpu[0]);
-  r.extra["alternating"] = per;
-  print_bench_report(r, json);
-  return 0;
+  return per;
 }
 
 }  // namespace
@@ -165,25 +174,22 @@ int bench_unet(const Args& a) {
   r.extra["gflop_pytorch_count"] = fl.total / 1e9;
   r.extra["weights_bytes"] = weights->total_bytes();
   // (The conditioning above was prepared in --precision's arithmetic, fp32 under --precisions; untimed either way.)
-  if (!rounds_of.empty()) return bench_unet_alternating(rounds_of, evals, warmup, r, json, evaluate);
-
-  warm_up("unet", warmup, [&] { evaluate(); });
+  const std::vector<Precision> precisions = rounds_of.empty() ? std::vector<Precision>{precision()} : rounds_of;
   StageTimes stages;
-  unet.set_profile(&stages);
-  set_kernel_profiling(profile_kernels);
-  std::vector<double> secs, cpu;
-  for (int64_t e = 0; e < evals; ++e) {
-    const auto [wall, cpu_s] = evaluate();
-    secs.push_back(wall);
-    cpu.push_back(cpu_s);
-    std::fprintf(stderr, "bench unet: evaluation %lld/%lld %.2f s\n", (long long)(e + 1), (long long)evals, wall);
+  const RoundTimes t = timed_rounds(precisions, warmup, evals, [&] {
+    unet.set_profile(&stages);
+    set_kernel_profiling(profile_kernels);
+  }, evaluate);
+  r.seconds = lower_median(t.wall[0]);
+  r.cpu_seconds = lower_median(t.cpu[0]);
+  if (!rounds_of.empty()) {
+    r.extra["alternating"] = alternating_report(precisions, t);
+  } else {  // (stages and kernels of one precision only)
+    nlohmann::ordered_json br = nlohmann::ordered_json::object();
+    for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
+    r.extra["breakdown_seconds"] = br;
+    if (profile_kernels) add_kernel_profile(r, evals);
   }
-  r.seconds = lower_median(secs);
-  r.cpu_seconds = lower_median(cpu);
-  nlohmann::ordered_json br = nlohmann::ordered_json::object();
-  for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
-  r.extra["breakdown_seconds"] = br;
-  if (profile_kernels) add_kernel_profile(r, evals);
   print_bench_report(r, json);
   return 0;
 }
