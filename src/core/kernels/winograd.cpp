@@ -287,7 +287,18 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const wino_detail::InputQuant input_quant = q8.input();
 
   const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
-  const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
+  const double flops = 18.0 * double(cout) * double(cin) * double(n * h * w);  // direct-equivalent
+  const int threads = omp_in_parallel() || flops < gemm_detail::kSerialFlops ? 1 : num_threads();
+  // Where U is transformed anew for each block of output channels, each thread keeps to its own rows of a block in
+  // all three phases (their filter transforms, products and output transforms; static schedules over row-major
+  // iterations), so U and the products never pass between cores: blocks of a multiple of threads x MR rows. A
+  // 2-core AMD EPYC Zen 4 host runs its two threads in two modes, one of them slow wherever data passes between
+  // them; there, 16 frames, float32: 1280 -> 1280 on 8x8 87 -> 55 ms a call, on 16x16 255 -> 205 ms, 640 -> 640 on
+  // 32x32 265 -> 220 ms; in the fast mode 0.9-1.15x the time (BENCHMARKS.md, forty-sixth session).
+  const bool own_rows = threads > 1 && blk.ncb > 1;
+  const int64_t row_unit = int64_t(threads) * MR;
+  const int64_t co = own_rows ? std::min(ceil_div(blk.co, row_unit), ceil_div(cout, row_unit)) * row_unit : blk.co;
+  const int64_t ncb = ceil_div(cout, co), tb = blk.tb, ntb = blk.ntb;
   // Floats per tile position, one cache line more than the matrices need: the transforms read and write all 36 (or
   // 16) positions of a tile together, which at a power-of-two distance would share one L1 set.
   const int64_t u_xi = co * K + 16, v_xi = tb * K + 16, m_xi = co * tb + 16;
@@ -297,7 +308,15 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   float* const Mb = V + v_floats;
 
   const int64_t npc = ceil_div(K, path.kc), kc_blk = ceil_div(K, npc);
-  const int64_t chunk_rows = std::min<int64_t>(co, std::max<int64_t>(MR, path.a_block_rows(kc_blk) / MR * MR));
+  int64_t chunk_rows = std::min<int64_t>(co, std::max<int64_t>(MR, path.a_block_rows(kc_blk) / MR * MR));
+  if (own_rows) {  // the largest chunk that divides a thread's share of the rows
+    const int64_t share = co / threads;
+    for (int64_t d = share / MR; d >= 1; --d)
+      if ((share / MR) % d == 0 && d * MR <= chunk_rows) {
+        chunk_rows = d * MR;
+        break;
+      }
+  }
   const int64_t nchunks = ceil_div(co, chunk_rows);
   const int64_t cchunks = ceil_div(K, L);
 
@@ -347,24 +366,31 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       }
   };
 
+  // The products of one tile position xi for one chunk of U's rows.
+  const auto gemm_chunk = [&](int64_t panels, int64_t xi, int64_t ch) {
+    const int64_t r0 = ch * chunk_rows, r1 = std::min(co, r0 + chunk_rows);
+    gemm_detail::TileEpilogue te;
+    for (int64_t pc = 0; pc < npc; ++pc) {
+      const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
+      te.load_c = pc > 0;
+      for (int64_t p = 0; p < panels; ++p) {
+        const float* b = V + xi * v_xi + p * K * L + k0 * L;
+        for (int64_t r = r0; r < r1; r += MR)
+          path.micro(kc, U + xi * u_xi + r * K + k0 * MR, 1, MR, b, Mb + xi * m_xi + r * tb + p * L, tb, MR, L, te);
+      }
+    }
+  };
   const auto gemm_phase = [&](int64_t tbi) {
     const int64_t panels = ceil_div(tiles_in(tbi), L);
+    if (own_rows) {  // thread t takes the chunks of its own rows, as in the filter and output phases
+#pragma omp for collapse(2) schedule(static)
+      for (int64_t ch = 0; ch < nchunks; ++ch)
+        for (int64_t xi = 0; xi < a2; ++xi) gemm_chunk(panels, xi, ch);
+    } else {
 #pragma omp for collapse(2) schedule(dynamic, 1)
-    for (int64_t xi = 0; xi < a2; ++xi)
-      for (int64_t ch = 0; ch < nchunks; ++ch) {
-        const int64_t r0 = ch * chunk_rows, r1 = std::min(co, r0 + chunk_rows);
-        gemm_detail::TileEpilogue te;
-        for (int64_t pc = 0; pc < npc; ++pc) {
-          const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
-          te.load_c = pc > 0;
-          for (int64_t p = 0; p < panels; ++p) {
-            const float* b = V + xi * v_xi + p * K * L + k0 * L;
-            for (int64_t r = r0; r < r1; r += MR)
-              path.micro(kc, U + xi * u_xi + r * K + k0 * MR, 1, MR, b, Mb + xi * m_xi + r * tb + p * L, tb, MR, L,
-                         te);
-          }
-        }
-      }
+      for (int64_t xi = 0; xi < a2; ++xi)
+        for (int64_t ch = 0; ch < nchunks; ++ch) gemm_chunk(panels, xi, ch);
+    }
   };
 
   const auto output_phase = [&](int64_t cb, int64_t tbi) {
@@ -380,9 +406,6 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       }
   };
 
-  const double flops = 18.0 * double(cout) * double(cin) * double(n * h * w);
-  int threads = omp_in_parallel() ? 1 : num_threads();
-  if (flops < gemm_detail::kSerialFlops) threads = 1;  // direct-equivalent flops
 #pragma omp parallel num_threads(threads) if (threads > 1)
   if (blk.tiles_outside) {
     for (int64_t tbi = 0; tbi < ntb; ++tbi) {
