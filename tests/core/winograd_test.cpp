@@ -31,6 +31,7 @@
 #include "core/kernels/gemm_internal.h"
 #include "core/kernels/winograd.h"
 #include "core/kernels/winograd_internal.h"
+#include "core/threading.h"
 
 namespace egopd {
 namespace {
@@ -339,24 +340,24 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
     // Blocks of more than L output channels: output-channel blocks outside, V recomputed for each.
     budget.filter = a2 * cin * 4 * 3 * L;
     int64_t cout = 6 * L + 5;
-    wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L, num_threads());
     ASSERT_TRUE(b.ncb > 1 && b.ntb > 1 && !b.tiles_outside) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
     // The same with room for the U of all output channels: one block of them, V transformed once per tile block.
     budget.whole_filter = a2 * cin * 4 * (cout + MR);
-    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L, num_threads());
     ASSERT_TRUE(b.ncb == 1 && b.ntb > 1) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
     budget.whole_filter = 0;
     // Blocks of MR (< L) output channels: tile blocks outside, U recomputed for each.
     budget.filter = a2 * cin * 4 * MR;
     cout = 3 * MR + 1;
-    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L, num_threads());
     ASSERT_TRUE(b.ncb > 1 && b.ntb > 1 && b.tiles_outside) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
     // All tiles in one block, shared by the blocks of output channels.
     budget.whole_tiles = int64_t(1) << 40;
-    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L, num_threads());
     ASSERT_TRUE(b.ncb > 1 && b.ntb == 1) << b.ncb << " " << b.ntb;
     EXPECT_EQ(run_wino({n, cin, cout, h, w}, t, seed++), 0);
   }
@@ -369,13 +370,54 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
   budget.min_block_tiles = L;
   budget.tiles = budget.whole_tiles = a2 * (cin + cout) * 4 * 4 * L;  // blocks of four panels of tiles
   ASSERT_LE(4 * L * cin * 4, l2 * 3 / 4);
-  wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, 4 * L, a2, MR, L);
+  wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, cout, 4 * L, a2, MR, L, 1);
   EXPECT_EQ(b.co, 2 * MR);
   EXPECT_EQ(run_wino({1, cin, cout, 8 * 4, L}, WinogradTile::F4x4, seed++), 0);  // 8 x L/4 tiles of 4x4: 2 L
   const int64_t wide = l2 / (cin * 4) / L * L + L;  // tiles whose slice exceeds 3/4 of L2 in one block
   budget.tiles = budget.whole_tiles = int64_t(1) << 40;
-  b = wino_detail::winograd_blocking(cin, cout, wide, a2, MR, L);
+  b = wino_detail::winograd_blocking(cin, cout, wide, a2, MR, L, 1);
   EXPECT_EQ(b.co, cout);
+}
+
+// Two threads, U transformed for each of several blocks of output channels: blocks of a multiple of 2 x MR rows,
+// each thread's own half of a block in every phase. The block count is the plan's or up to twice it, whichever pads
+// cout least; in a last block that ends inside the first thread's half, the second multiplies no padding panels.
+TEST_P(WinogradTest, OwnRowsBlocks) {
+  const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
+  const int MR = path.mr, L = path.nr;
+  struct Restore {
+    wino_detail::WinogradBudgets saved = wino_detail::winograd_budgets();
+    int threads = num_threads();
+    ~Restore() {
+      wino_detail::winograd_budgets() = saved;
+      set_num_threads(threads);
+    }
+  } restore;
+  wino_detail::WinogradBudgets& budget = wino_detail::winograd_budgets();
+  const int64_t a2 = 36, cin = 20, ntiles = 2 * 11 * 7;
+  // 640 output channels in blocks of at most 108 (9 panels of 12): 6 of 120 rows, 720 in all, or 9 of 72, 648.
+  budget.filter = budget.filter_near = a2 * cin * 4 * 108;
+  budget.whole_filter = 0;
+  wino_detail::WinogradBlocking b = wino_detail::winograd_blocking(cin, 640, ntiles, a2, 12, 32, 1);
+  EXPECT_TRUE(b.co == 108 && b.ncb == 6 && !b.own_rows) << b.co << " " << b.ncb;
+  b = wino_detail::winograd_blocking(cin, 640, ntiles, a2, 12, 32, 2);
+  EXPECT_TRUE(b.co == 72 && b.ncb == 9 && b.own_rows) << b.co << " " << b.ncb;
+  // One block of all output channels: no rows of a thread's own.
+  budget.filter = budget.filter_near = a2 * cin * 4 * 648;
+  EXPECT_FALSE(wino_detail::winograd_blocking(cin, 640, ntiles, a2, 12, 32, 2).own_rows);
+
+  // On this path's panels: 3 units of 2 x MR rows and one more in blocks of half of that, so two blocks of two units;
+  // the last holds one unit and a row, the second thread's half of it one row and MR - 1 padding rows.
+  set_num_threads(2);
+  const int64_t unit = 2 * MR, cout = 3 * unit + 1;
+  uint32_t seed = 140;
+  for (WinogradTile t : kTiles) {
+    const int64_t m = t == WinogradTile::F4x4 ? 4 : 2, tile_a2 = (m + 2) * (m + 2);
+    budget.filter = budget.filter_near = tile_a2 * cin * 4 * ((cout + 1) / 2 + MR - 1) / MR * MR;
+    b = wino_detail::winograd_blocking(cin, cout, ntiles, tile_a2, MR, L, 2);
+    ASSERT_TRUE(b.own_rows && b.ncb == 2 && b.co == 2 * unit) << b.co << " " << b.ncb;
+    EXPECT_EQ(run_wino({2, cin, cout, 11 * m, 6 * m + 1}, t, seed++), 0);  // 2 x 11 x 7 tiles, as ntiles
+  }
 }
 
 TEST_P(WinogradTest, WeightDtypesAndEpilogues) {

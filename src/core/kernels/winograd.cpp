@@ -75,12 +75,36 @@ WinogradBlocking plan_blocking(int64_t K, int64_t cout, int64_t ntiles, int64_t 
   return b;
 }
 
+// Where U is transformed anew for each block of output channels (several blocks), each thread keeps to its own rows
+// of a block in all three phases, so that U and the products never pass between cores: blocks of a multiple of
+// threads x mr rows. A 2-core AMD EPYC Zen 4 host runs its two threads in two modes, one of them slow wherever data
+// passes between them; there, 16 frames, float32: 1280 -> 1280 on 8x8 87 -> 55 ms a call, on 16x16 255 -> 205 ms,
+// 640 -> 640 on 32x32 265 -> 220 ms; in the fast mode 0.9-1.15x the time (BENCHMARKS.md, forty-sixth session). Of
+// the block counts from the plan's to twice it, the one whose blocks pad cout least (the fewest blocks on a tie): the
+// rounding of the plan's own blocks may add most of a block (960 -> 640 channels, 108-row blocks: 6 of 120 rows,
+// 720 in all, against 9 of 72, 648).
+WinogradBlocking with_own_rows(WinogradBlocking b, int64_t cout, int mr, int threads) {
+  if (threads <= 1 || b.ncb <= 1) return b;
+  const int64_t unit = int64_t(threads) * mr;
+  int64_t best = 0;
+  for (int64_t blocks = b.ncb; blocks <= 2 * b.ncb; ++blocks) {
+    const int64_t co = ceil_div(ceil_div(cout, blocks), unit) * unit;
+    if (best == 0 || ceil_div(cout, co) * co < ceil_div(cout, best) * best) best = co;
+  }
+  b.co = best;
+  b.ncb = ceil_div(cout, best);
+  b.own_rows = b.ncb > 1;
+  return b;
+}
+
 }  // namespace
 
-WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes) {
+WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes,
+                                   int threads) {
   const int64_t K = std::max<int64_t>(cin, 1), L = lanes;
   const WinogradBudgets& budget = winograd_budgets();
-  const WinogradBlocking b = plan_blocking(K, cout, ntiles, a2, mr, L, budget.filter);
+  const WinogradBlocking b =
+      with_own_rows(plan_blocking(K, cout, ntiles, a2, mr, L, budget.filter), cout, mr, threads);
   // The GEMM of one tile position multiplies U's slice (co x K) by V's (tb x K). Where V's slice takes at most 3/4
   // of L2, a block of U within budget.filter_near (4x L2) keeps U's slices near too (U-Net, 16 frames, AMD EPYC Zen
   // 5 class, 1 MiB L2, alternating runs: 1280 channels on 8x8 1.2-1.4x faster, 960->640 on 16x16 1.06-1.3x,
@@ -89,7 +113,7 @@ WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, in
   const int64_t l2 = cpu_info().l2_bytes(), v_fits = l2 * 3 / 4;
   const int64_t near = std::min(budget.filter, budget.filter_near > 0 ? budget.filter_near : 4 * l2);
   if (b.tb * K * 4 > v_fits) return b;
-  const WinogradBlocking n = plan_blocking(K, cout, ntiles, a2, mr, L, near);
+  const WinogradBlocking n = with_own_rows(plan_blocking(K, cout, ntiles, a2, mr, L, near), cout, mr, threads);
   return n.tb * K * 4 <= v_fits ? n : b;
 }
 
@@ -286,19 +310,11 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   const Int8Scales q8 = int8 ? int8_scales(x, n, h * w, cin, weight, cout, MR) : Int8Scales{};
   const wino_detail::InputQuant input_quant = q8.input();
 
-  const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L);
   const double flops = 18.0 * double(cout) * double(cin) * double(n * h * w);  // direct-equivalent
   const int threads = omp_in_parallel() || flops < gemm_detail::kSerialFlops ? 1 : num_threads();
-  // Where U is transformed anew for each block of output channels, each thread keeps to its own rows of a block in
-  // all three phases (their filter transforms, products and output transforms; static schedules over row-major
-  // iterations), so U and the products never pass between cores: blocks of a multiple of threads x MR rows. A
-  // 2-core AMD EPYC Zen 4 host runs its two threads in two modes, one of them slow wherever data passes between
-  // them; there, 16 frames, float32: 1280 -> 1280 on 8x8 87 -> 55 ms a call, on 16x16 255 -> 205 ms, 640 -> 640 on
-  // 32x32 265 -> 220 ms; in the fast mode 0.9-1.15x the time (BENCHMARKS.md, forty-sixth session).
-  const bool own_rows = threads > 1 && blk.ncb > 1;
-  const int64_t row_unit = int64_t(threads) * MR;
-  const int64_t co = own_rows ? std::min(ceil_div(blk.co, row_unit), ceil_div(cout, row_unit)) * row_unit : blk.co;
-  const int64_t ncb = ceil_div(cout, co), tb = blk.tb, ntb = blk.ntb;
+  const wino_detail::WinogradBlocking blk = wino_detail::winograd_blocking(cin, cout, ntiles, a2, MR, L, threads);
+  const bool own_rows = blk.own_rows;
+  const int64_t co = blk.co, ncb = blk.ncb, tb = blk.tb, ntb = blk.ntb;
   // Floats per tile position, one cache line more than the matrices need: the transforms read and write all 36 (or
   // 16) positions of a tile together, which at a power-of-two distance would share one L1 set.
   const int64_t u_xi = co * K + 16, v_xi = tb * K + 16, m_xi = co * tb + 16;
@@ -308,16 +324,14 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
   float* const Mb = V + v_floats;
 
   const int64_t npc = ceil_div(K, path.kc), kc_blk = ceil_div(K, npc);
-  int64_t chunk_rows = std::min<int64_t>(co, std::max<int64_t>(MR, path.a_block_rows(kc_blk) / MR * MR));
-  if (own_rows) {  // the largest chunk that divides a thread's share of the rows
-    const int64_t share = co / threads;
-    for (int64_t d = share / MR; d >= 1; --d)
-      if ((share / MR) % d == 0 && d * MR <= chunk_rows) {
-        chunk_rows = d * MR;
-        break;
-      }
-  }
-  const int64_t nchunks = ceil_div(co, chunk_rows);
+  // The products go by chunks of U's rows, each a whole number of panels and at most an A block: balanced chunks of
+  // each thread's share of the block's rows (own_rows) or of all of them. Every chunk re-reads the tile position's
+  // V slice, so a share is never cut finer than the A block needs (640 -> 640 on 16x16: 84 rows a thread in two
+  // chunks, not seven of one panel, which read V 3.5x as often: 1.5x the time, AMD EPYC Zen 5 class).
+  const int64_t share = own_rows ? co / threads : co;
+  const int64_t share_chunks = ceil_div(share, std::max<int64_t>(MR, path.a_block_rows(kc_blk) / MR * MR));
+  const int64_t chunk_rows = ceil_div(ceil_div(share, share_chunks), MR) * MR;
+  const int64_t nchunks = (own_rows ? threads : 1) * share_chunks;
   const int64_t cchunks = ceil_div(K, L);
 
   // One item: the MR output channels of one A panel times up to L input channels. The path's A packer converts and
@@ -366,9 +380,11 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       }
   };
 
-  // The products of one tile position xi for one chunk of U's rows.
-  const auto gemm_chunk = [&](int64_t panels, int64_t xi, int64_t ch) {
-    const int64_t r0 = ch * chunk_rows, r1 = std::min(co, r0 + chunk_rows);
+  // The products of one tile position xi for one chunk of U's rows, up to the last panel of block cb that holds
+  // output channels.
+  const auto gemm_chunk = [&](int64_t cb, int64_t panels, int64_t xi, int64_t ch) {
+    const int64_t s0 = ch / share_chunks * share, r0 = s0 + ch % share_chunks * chunk_rows;
+    const int64_t r1 = std::min({s0 + share, r0 + chunk_rows, ceil_div(cout - cb * co, MR) * MR});
     gemm_detail::TileEpilogue te;
     for (int64_t pc = 0; pc < npc; ++pc) {
       const int64_t k0 = pc * kc_blk, kc = std::min(kc_blk, K - k0);
@@ -380,16 +396,16 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       }
     }
   };
-  const auto gemm_phase = [&](int64_t tbi) {
+  const auto gemm_phase = [&](int64_t cb, int64_t tbi) {
     const int64_t panels = ceil_div(tiles_in(tbi), L);
     if (own_rows) {  // thread t takes the chunks of its own rows, as in the filter and output phases
 #pragma omp for collapse(2) schedule(static)
       for (int64_t ch = 0; ch < nchunks; ++ch)
-        for (int64_t xi = 0; xi < a2; ++xi) gemm_chunk(panels, xi, ch);
+        for (int64_t xi = 0; xi < a2; ++xi) gemm_chunk(cb, panels, xi, ch);
     } else {
 #pragma omp for collapse(2) schedule(dynamic, 1)
       for (int64_t xi = 0; xi < a2; ++xi)
-        for (int64_t ch = 0; ch < nchunks; ++ch) gemm_chunk(panels, xi, ch);
+        for (int64_t ch = 0; ch < nchunks; ++ch) gemm_chunk(cb, panels, xi, ch);
     }
   };
 
@@ -412,7 +428,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       input_phase(tbi);
       for (int64_t cb = 0; cb < ncb; ++cb) {
         filter_phase(cb);
-        gemm_phase(tbi);
+        gemm_phase(cb, tbi);
         output_phase(cb, tbi);
       }
     }
@@ -421,7 +437,7 @@ void conv2d_winograd(const float* x, int64_t n, int64_t h, int64_t w, const Oper
       filter_phase(cb);
       for (int64_t tbi = 0; tbi < ntb; ++tbi) {
         if (ntb > 1 || cb == 0) input_phase(tbi);
-        gemm_phase(tbi);
+        gemm_phase(cb, tbi);
         output_phase(cb, tbi);
       }
     }

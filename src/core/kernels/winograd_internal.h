@@ -108,13 +108,17 @@ struct WinogradBudgets {
 };
 WinogradBudgets& winograd_budgets();
 
-// How conv2d_winograd blocks a call of ntiles tiles (a2 = alpha^2 tile positions, mr x lanes micro-tiles).
+// How conv2d_winograd blocks a call of ntiles tiles (a2 = alpha^2 tile positions, mr x lanes micro-tiles) on
+// `threads` threads.
 struct WinogradBlocking {
   int64_t co = 0, ncb = 0;   // output channels per block (a multiple of mr), blocks
   int64_t tb = 0, ntb = 0;   // tiles per block (a multiple of lanes), blocks
   bool tiles_outside = false;  // loop over tile blocks outside (U recomputed per tile block), else V per channel block
+  bool own_rows = false;       // thread t keeps to rows [t, t + 1) * co / threads of every block (co a multiple of
+                               // threads x mr) in the filter transforms, the products and the output transforms
 };
-WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes);
+WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, int64_t a2, int mr, int lanes,
+                                   int threads);
 
 // act applied in place to n values (the element-wise kernels; serial for the small blocks passed here).
 void apply_act_inplace(Act act, float* v, int64_t n);
