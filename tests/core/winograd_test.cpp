@@ -318,16 +318,22 @@ TEST_P(WinogradTest, ChannelTailsAndBlocking) {
   }
 }
 
+// Restores the Winograd scratch budgets and the default thread count when a blocking test ends.
+struct BlockingRestore {
+  wino_detail::WinogradBudgets saved = wino_detail::winograd_budgets();
+  ~BlockingRestore() {
+    wino_detail::winograd_budgets() = saved;
+    set_num_threads(0);
+  }
+};
+
 // Several blocks of output channels and of tiles, on small shapes under shrunken scratch budgets: both orders of
 // the two block loops and the one-block-of-all-tiles case are reached (asserted on the blocking the driver uses)
 // and checked against the reference.
 TEST_P(WinogradTest, EveryBlockingOrder) {
   const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
   const int MR = path.mr, L = path.nr;
-  struct Restore {
-    wino_detail::WinogradBudgets saved = wino_detail::winograd_budgets();
-    ~Restore() { wino_detail::winograd_budgets() = saved; }
-  } restore;
+  const BlockingRestore restore;
   wino_detail::WinogradBudgets& budget = wino_detail::winograd_budgets();
   uint32_t seed = 90;
   for (WinogradTile t : kTiles) {
@@ -385,14 +391,7 @@ TEST_P(WinogradTest, EveryBlockingOrder) {
 TEST_P(WinogradTest, OwnRowsBlocks) {
   const gemm_detail::GemmPath& path = gemm_detail::gemm_path();
   const int MR = path.mr, L = path.nr;
-  struct Restore {
-    wino_detail::WinogradBudgets saved = wino_detail::winograd_budgets();
-    int threads = num_threads();
-    ~Restore() {
-      wino_detail::winograd_budgets() = saved;
-      set_num_threads(threads);
-    }
-  } restore;
+  const BlockingRestore restore;
   wino_detail::WinogradBudgets& budget = wino_detail::winograd_budgets();
   const int64_t a2 = 36, cin = 20, ntiles = 2 * 11 * 7;
   // 640 output channels in blocks of at most 108 (9 panels of 12): 6 of 120 rows, 720 in all, or 9 of 72, 648.
