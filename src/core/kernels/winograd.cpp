@@ -103,8 +103,10 @@ WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, in
                                    int threads) {
   const int64_t K = std::max<int64_t>(cin, 1), L = lanes;
   const WinogradBudgets& budget = winograd_budgets();
-  const WinogradBlocking b =
-      with_own_rows(plan_blocking(K, cout, ntiles, a2, mr, L, budget.filter), cout, mr, threads);
+  const auto plan = [&](int64_t filter_budget) {
+    return with_own_rows(plan_blocking(K, cout, ntiles, a2, mr, L, filter_budget), cout, mr, threads);
+  };
+  const WinogradBlocking b = plan(budget.filter);
   // The GEMM of one tile position multiplies U's slice (co x K) by V's (tb x K). Where V's slice takes at most 3/4
   // of L2, a block of U within budget.filter_near (4x L2) keeps U's slices near too (U-Net, 16 frames, AMD EPYC Zen
   // 5 class, 1 MiB L2, alternating runs: 1280 channels on 8x8 1.2-1.4x faster, 960->640 on 16x16 1.06-1.3x,
@@ -113,7 +115,7 @@ WinogradBlocking winograd_blocking(int64_t cin, int64_t cout, int64_t ntiles, in
   const int64_t l2 = cpu_info().l2_bytes(), v_fits = l2 * 3 / 4;
   const int64_t near = std::min(budget.filter, budget.filter_near > 0 ? budget.filter_near : 4 * l2);
   if (b.tb * K * 4 > v_fits) return b;
-  const WinogradBlocking n = with_own_rows(plan_blocking(K, cout, ntiles, a2, mr, L, near), cout, mr, threads);
+  const WinogradBlocking n = plan(near);
   return n.tb * K * 4 <= v_fits ? n : b;
 }
 
