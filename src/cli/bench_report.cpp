@@ -50,25 +50,30 @@ void warm_up(const std::string& target, int64_t n, const std::function<void()>& 
   }
 }
 
-void add_kernel_profile(BenchReport& r, int64_t runs) {
+void kernel_profile_fields(const std::vector<KernelProfileEntry>& entries, int64_t runs, double run_seconds,
+                           nlohmann::ordered_json& into) {
   const double per_run = 1.0 / double(std::max<int64_t>(runs, 1));
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
   double total = 0;
-  for (const KernelProfileEntry& e : kernel_profile()) {
+  for (const KernelProfileEntry& e : entries) {
     nlohmann::ordered_json row;
     row["kernel"] = e.kernel;
     row["calls"] = double(e.calls) * per_run;
     row["seconds"] = e.seconds * per_run;
     row["gflop"] = e.flop * per_run * 1e-9;
     row["gflops"] = e.seconds > 0 ? e.flop / e.seconds * 1e-9 : 0.0;
-    row["share_of_run"] = r.seconds > 0 ? e.seconds * per_run / r.seconds : 0.0;
+    row["share_of_run"] = run_seconds > 0 ? e.seconds * per_run / run_seconds : 0.0;
     rows.push_back(row);
     total += e.seconds * per_run;
   }
+  into["kernel_profile_seconds"] = total;  // the rest of the run: norms, activations, re-layouts
+  into["kernel_profile"] = rows;
+}
+
+void add_kernel_profile(BenchReport& r, int64_t runs) {
+  kernel_profile_fields(kernel_profile(), runs, r.seconds, r.extra);
   set_kernel_profiling(false);
   clear_kernel_profile();
-  r.extra["kernel_profile_seconds"] = total;  // the rest of the run: norms, activations, re-layouts
-  r.extra["kernel_profile"] = rows;
 }
 
 void print_bench_report(const BenchReport& r, bool json) {

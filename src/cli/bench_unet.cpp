@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <map>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -40,7 +41,6 @@ double lower_median(std::vector<double> v) {
 std::vector<Precision> alternated_precisions(const Args& a) {
   if (!a.has("precisions")) return {};
   if (a.has("precision")) throw Error("bench unet: give --precision or --precisions, not both");
-  if (a.flag("kernel-profile")) throw Error("bench unet: --kernel-profile takes one --precision, not --precisions");
   std::vector<Precision> out;
   std::stringstream list(a.get("precisions", ""));
   for (std::string name; std::getline(list, name, ',');) {
@@ -61,14 +61,15 @@ struct RoundTimes {
 };
 
 // `warmup` untimed rounds, then `evals` timed ones (`before_timing` runs between them), each round one evaluation per
-// precision in the order given. One precision: plain repeated evaluations in it. Several: on a shared machine whose
-// speed drifts over minutes, the ratio of two evaluations a few seconds apart moves far less than that of two runs.
+// precision in the order given (evaluate(i): one evaluation in precisions[i]). One precision: plain repeated
+// evaluations in it. Several: on a shared machine whose speed drifts over minutes, the ratio of two evaluations a few
+// seconds apart moves far less than that of two runs.
 RoundTimes timed_rounds(const std::vector<Precision>& precisions, int64_t warmup, int64_t evals,
                         const std::function<void()>& before_timing,
-                        const std::function<std::pair<double, double>()>& evaluate) {
+                        const std::function<std::pair<double, double>(size_t)>& evaluate) {
   const auto label = [&](Precision p) { return precisions.size() > 1 ? std::string(" ") + precision_name(p) : ""; };
   warm_up("unet", warmup, [&] {  // one round
-    for (Precision p : precisions) set_precision(p), evaluate();
+    for (size_t i = 0; i < precisions.size(); ++i) set_precision(precisions[i]), evaluate(i);
   });
   before_timing();
   RoundTimes t;
@@ -77,7 +78,7 @@ RoundTimes timed_rounds(const std::vector<Precision>& precisions, int64_t warmup
   for (int64_t e = 0; e < evals; ++e)
     for (size_t i = 0; i < precisions.size(); ++i) {
       set_precision(precisions[i]);
-      const auto [wall, cpu_s] = evaluate();
+      const auto [wall, cpu_s] = evaluate(i);
       t.wall[i].push_back(wall);
       t.cpu[i].push_back(cpu_s);
       std::fprintf(stderr, "bench unet: evaluation %lld/%lld%s %.2f s\n", (long long)(e + 1), (long long)evals,
@@ -87,9 +88,54 @@ RoundTimes timed_rounds(const std::vector<Precision>& precisions, int64_t warmup
   return t;
 }
 
-// --precisions: each precision's seconds per round and lower median, and the first precision's time over each
-// other's, per round and the median of those.
-nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisions, const RoundTimes& t) {
+// What one precision's timed evaluations recorded: stage times, and the kernel calls under --kernel-profile.
+struct PrecisionProfile {
+  StageTimes stages;
+  std::map<std::string, KernelProfileEntry> kernels;  // by kernel and shape, summed over the evaluations
+  void add_kernels(const std::vector<KernelProfileEntry>& entries) {
+    for (const KernelProfileEntry& e : entries) {
+      KernelProfileEntry& k = kernels[e.kernel];
+      k.kernel = e.kernel;
+      k.calls += e.calls;
+      k.seconds += e.seconds;
+      k.flop += e.flop;
+    }
+  }
+  std::vector<KernelProfileEntry> kernel_list() const {  // slowest first, as kernel_profile() gives them
+    std::vector<KernelProfileEntry> out;
+    for (const auto& [name, e] : kernels) out.push_back(e);
+    std::sort(out.begin(), out.end(), [](const auto& x, const auto& y) { return x.seconds > y.seconds; });
+    return out;
+  }
+};
+
+nlohmann::ordered_json stage_seconds(const StageTimes& stages, int64_t evals) {
+  nlohmann::ordered_json br = nlohmann::ordered_json::object();
+  for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
+  return br;
+}
+
+// Seconds per evaluation of each kind of kernel call (gemm, gemm_geglu, conv2d, conv_temporal3, attention).
+std::map<std::string, double> kind_seconds(const PrecisionProfile& p, int64_t evals) {
+  std::map<std::string, double> out;
+  for (const auto& [name, e] : p.kernels) out[name.substr(0, name.find(' '))] += e.seconds / double(evals);
+  return out;
+}
+
+// --precisions: each precision's seconds per round and lower median, its stage times and (--kernel-profile) kernel
+// profile, and the first precision's time over each other's: per round and the median of those, per stage and per
+// kind of kernel (the same layers, measured minutes apart at most).
+nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisions, const RoundTimes& t,
+                                          const std::vector<PrecisionProfile>& profiles, bool kernels) {
+  const int64_t evals = int64_t(t.wall[0].size());
+  const auto speedups = [](const auto& first, const auto& other) {
+    nlohmann::ordered_json out = nlohmann::ordered_json::object();
+    for (const auto& [name, s] : other) {
+      const auto it = std::find_if(first.begin(), first.end(), [&](const auto& f) { return f.first == name; });
+      if (it != first.end() && s > 0) out[name] = it->second / s;
+    }
+    return out;
+  };
   nlohmann::ordered_json per = nlohmann::ordered_json::object();
   for (size_t i = 0; i < precisions.size(); ++i) {
     nlohmann::ordered_json row;
@@ -101,6 +147,14 @@ nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisio
       for (size_t e = 0; e < t.wall[i].size(); ++e) ratio.push_back(t.wall[0][e] / t.wall[i][e]);
       row["speedup_per_round"] = ratio;
       row["speedup"] = median(ratio);  // over the first precision, same round
+    }
+    row["breakdown_seconds"] = stage_seconds(profiles[i].stages, evals);
+    if (i > 0) row["breakdown_speedup"] = speedups(profiles[0].stages.entries(), profiles[i].stages.entries());
+    if (kernels) {
+      const std::map<std::string, double> kinds = kind_seconds(profiles[i], evals);
+      row["kernel_kinds_seconds"] = kinds;
+      if (i > 0) row["kernel_kinds_speedup"] = speedups(kind_seconds(profiles[0], evals), kinds);
+      kernel_profile_fields(profiles[i].kernel_list(), evals, lower_median(t.wall[i]), row);
     }
     per[precision_name(precisions[i])] = row;
   }
@@ -149,13 +203,21 @@ int bench_unet(const Args& a) {
   }
   UNetConditioning cond = unet.prepare(ehs, pifr ? &text : nullptr);
 
-  // One evaluation: wall and CPU seconds.
-  const auto evaluate = [&] {
+  // One evaluation in precisions[i]: wall and CPU seconds. Timed ones record into profiles[i].
+  const std::vector<Precision> precisions = rounds_of.empty() ? std::vector<Precision>{precision()} : rounds_of;
+  std::vector<PrecisionProfile> profiles(precisions.size());
+  bool timing = false;
+  const auto evaluate = [&](size_t i) {
+    if (timing) unet.set_profile(&profiles[i].stages);
     auto t0 = std::chrono::steady_clock::now();
     const double c0 = process_cpu_seconds();
     Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
     const double cpu_s = process_cpu_seconds() - c0, wall = seconds_since(t0);
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
+    if (timing && profile_kernels && precisions.size() > 1) {  // each precision's calls apart
+      profiles[i].add_kernels(kernel_profile());
+      clear_kernel_profile();
+    }
     return std::make_pair(wall, cpu_s);
   };
   const auto fl = unet.flops(1, frames, h, w, 1, pifr ? 77 : 0);
@@ -174,20 +236,17 @@ int bench_unet(const Args& a) {
   r.extra["gflop_pytorch_count"] = fl.total / 1e9;
   r.extra["weights_bytes"] = weights->total_bytes();
   // (The conditioning above was prepared in --precision's arithmetic, fp32 under --precisions; untimed either way.)
-  const std::vector<Precision> precisions = rounds_of.empty() ? std::vector<Precision>{precision()} : rounds_of;
-  StageTimes stages;
   const RoundTimes t = timed_rounds(precisions, warmup, evals, [&] {
-    unet.set_profile(&stages);
+    timing = true;
     set_kernel_profiling(profile_kernels);
   }, evaluate);
   r.seconds = lower_median(t.wall[0]);
   r.cpu_seconds = lower_median(t.cpu[0]);
   if (!rounds_of.empty()) {
-    r.extra["alternating"] = alternating_report(precisions, t);
-  } else {  // (stages and kernels of one precision only)
-    nlohmann::ordered_json br = nlohmann::ordered_json::object();
-    for (const auto& [k, v] : stages.entries()) br[k] = v / double(evals);
-    r.extra["breakdown_seconds"] = br;
+    r.extra["alternating"] = alternating_report(precisions, t, profiles, profile_kernels);
+    set_kernel_profiling(false);
+  } else {
+    r.extra["breakdown_seconds"] = stage_seconds(profiles[0].stages, evals);
     if (profile_kernels) add_kernel_profile(r, evals);
   }
   print_bench_report(r, json);

@@ -9,6 +9,7 @@
 
 #include "cli/args.h"
 #include "core/dtype.h"
+#include "core/kernels/kernel_profile.h"
 #include "core/tensor.h"
 #include "core/weights.h"
 
@@ -61,6 +62,10 @@ void print_bench_report(const BenchReport& r, bool json);
 // --kernel-profile: r.extra["kernel_profile"] from the kernel calls recorded so far (core/kernels/kernel_profile.h),
 // per run of `runs`, slowest first, with their GFLOP/s and share of the run; then profiling stops.
 void add_kernel_profile(BenchReport& r, int64_t runs);
+// The same fields from `entries` into `into`: "kernel_profile_seconds" (the sum) and "kernel_profile" (the rows), per
+// run of `runs` of `run_seconds` each.
+void kernel_profile_fields(const std::vector<KernelProfileEntry>& entries, int64_t runs, double run_seconds,
+                           nlohmann::ordered_json& into);
 double median(std::vector<double> values);  // of one or more values; an even count: the mean of the middle two
 // Median wall and process-CPU seconds of `repeat` calls, after one untimed warm-up call when `warmup` (first
 // touches of mapped weights and scratch buffers).

@@ -40,7 +40,8 @@ const BenchTarget kBenchTargets[] = {
      "      [--weights DIR] [--kernel-profile]   the profile: time, calls and GFLOP/s per GEMM, convolution and\n"
      "      attention shape\n"
      "      [--precisions fp32,bf16,int8]   alternate: each round one evaluation per precision, in this order; the\n"
-     "      report gives each one's seconds and the first one's time over each other's, per round and their median"},
+     "      report gives each one's seconds and the first one's time over each other's, per round and their median,\n"
+     "      and per stage; with --kernel-profile each one's profile and that ratio per kind of kernel call"},
     {"clip_image", bench_clip_image, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"clip_text", bench_clip_text, "[--config svd-xt] [--dtype f16|f32|bf16] [--repeat 1]"},
     {"vae_encode", bench_vae_encode,

@@ -100,7 +100,6 @@ expect_error "--precisions: 'int4' is not fp32, bf16 or int8" "$egopd" bench une
 expect_error "--precisions needs two or more" "$egopd" bench unet --precisions bf16
 expect_error "--precisions names bf16 twice" "$egopd" bench unet --precisions bf16,fp32,bf16
 expect_error "give --precision or --precisions, not both" "$egopd" bench unet --precision bf16 --precisions fp32,bf16
-expect_error "--kernel-profile takes one --precision" "$egopd" bench unet --precisions fp32,bf16 --kernel-profile
 
 # Extra metadata fields (a dataset's category, say) are reported by name, and the run goes on.
 "${p[@]}" --meta "$work/extra.json" --threads 1 2>"$work/extra.log" || fail "extra field: $(tail -1 "$work/extra.log")"
