@@ -124,7 +124,7 @@ std::map<std::string, double> kind_seconds(const PrecisionProfile& p, int64_t ev
 
 // --precisions: each precision's seconds per round and lower median, its stage times and (--kernel-profile) kernel
 // profile, and the first precision's time over each other's: per round and the median of those, per stage and per
-// kind of kernel (the same layers, measured minutes apart at most).
+// kind of kernel call (the same layers, evaluated seconds apart).
 nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisions, const RoundTimes& t,
                                           const std::vector<PrecisionProfile>& profiles, bool kernels) {
   const int64_t evals = int64_t(t.wall[0].size());
