@@ -130,9 +130,10 @@ nlohmann::ordered_json alternating_report(const std::vector<Precision>& precisio
   const int64_t evals = int64_t(t.wall[0].size());
   const auto speedups = [](const auto& first, const auto& other) {
     nlohmann::ordered_json out = nlohmann::ordered_json::object();
-    for (const auto& [name, s] : other) {
+    for (const auto& entry : other) {  // (not a structured binding: clang 14 cannot capture those)
+      const std::string& name = entry.first;
       const auto it = std::find_if(first.begin(), first.end(), [&](const auto& f) { return f.first == name; });
-      if (it != first.end() && s > 0) out[name] = it->second / s;
+      if (it != first.end() && entry.second > 0) out[name] = it->second / entry.second;
     }
     return out;
   };
