@@ -215,7 +215,7 @@ int bench_unet(const Args& a) {
     Tensor v = unet.forward(sample, 1.6377700567245483f, ids, cond);
     const double cpu_s = process_cpu_seconds() - c0, wall = seconds_since(t0);
     if (!std::isfinite(v[0])) throw Error("bench unet: non-finite output");
-    if (timing && profile_kernels && precisions.size() > 1) {  // each precision's calls apart
+    if (timing && profile_kernels) {  // each precision's calls apart
       profiles[i].add_kernels(kernel_profile());
       clear_kernel_profile();
     }
@@ -243,12 +243,12 @@ int bench_unet(const Args& a) {
   }, evaluate);
   r.seconds = lower_median(t.wall[0]);
   r.cpu_seconds = lower_median(t.cpu[0]);
+  set_kernel_profiling(false);
   if (!rounds_of.empty()) {
     r.extra["alternating"] = alternating_report(precisions, t, profiles, profile_kernels);
-    set_kernel_profiling(false);
   } else {
     r.extra["breakdown_seconds"] = stage_seconds(profiles[0].stages, evals);
-    if (profile_kernels) add_kernel_profile(r, evals);
+    if (profile_kernels) kernel_profile_fields(profiles[0].kernel_list(), evals, r.seconds, r.extra);
   }
   print_bench_report(r, json);
   return 0;
